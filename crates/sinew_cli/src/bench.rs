@@ -1,0 +1,140 @@
+//! `sinew bench`: per-block ms/frame, medians of several runs.
+
+use crate::commands::load_solver;
+use sinew_core::StepTimings;
+use sinew_core::glam::Vec3;
+use std::error::Error;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// One run: per-block ms/frame and wall ms/frame.
+fn run_once(
+    scene: &str,
+    frames: u32,
+    iterations: Option<u32>,
+    timers: bool,
+) -> Result<([f64; 7], f64, usize, usize), Box<dyn Error>> {
+    let (_, mut solver) = load_solver(scene)?;
+    if let Some(i) = iterations {
+        solver.settings.iterations = i;
+    }
+    solver.settings.timers = timers;
+    // Warm-up frame links targets and faults pages in.
+    solver.step();
+    let mut blocks = [Duration::ZERO; 7];
+    let start = Instant::now();
+    for _ in 0..frames {
+        solver.step();
+        let t: &StepTimings = solver.timings();
+        for (b, d) in blocks.iter_mut().zip(t.as_array()) {
+            *b += d;
+        }
+    }
+    let wall = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+    let per_frame = blocks.map(|d| d.as_secs_f64() * 1e3 / frames as f64);
+    let constraints = solver.muscles().iter().map(|m| m.counts().total()).sum();
+    let iters = solver.settings.iterations as usize;
+    Ok((per_frame, wall, constraints, iters))
+}
+
+/// A bare XPBD distance loop over `n` constraints on a chain: the practical
+/// lower bound per constraint-iteration on this machine. Returns ns.
+fn bare_kernel_ns(n: usize, iterations: usize) -> f64 {
+    let particles = n + 1;
+    let mut p: Vec<Vec3> = (0..particles)
+        .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
+        .collect();
+    let w = vec![1.0f32; particles];
+    let a: Vec<u32> = (0..n as u32).collect();
+    let b: Vec<u32> = (1..=n as u32).collect();
+    let rest = vec![0.009f32; n];
+    let mut lambda = vec![0.0f32; n];
+    let alpha = 1e-5f32 * 3600.0;
+    let reps = (2_000_000 / (n * iterations).max(1)).max(3);
+    let mut samples = Vec::new();
+    for _ in 0..reps {
+        lambda.fill(0.0);
+        let t = Instant::now();
+        for _ in 0..iterations {
+            for i in 0..n {
+                let (ia, ib) = (a[i] as usize, b[i] as usize);
+                let d = p[ia] - p[ib];
+                let len = d.length();
+                if len < 1e-9 {
+                    continue;
+                }
+                let dl = (-(len - rest[i]) - alpha * lambda[i]) / (w[ia] + w[ib] + alpha);
+                lambda[i] += dl;
+                let g = d * (dl / len);
+                p[ia] += w[ia] * g;
+                p[ib] -= w[ib] * g;
+            }
+        }
+        samples.push(t.elapsed().as_secs_f64() * 1e9 / (n * iterations) as f64);
+    }
+    std::hint::black_box(&p);
+    median(samples)
+}
+
+pub fn run(
+    scene: &str,
+    frames: u32,
+    runs: u32,
+    iterations: Option<u32>,
+    timer_overhead: bool,
+) -> Result<ExitCode, Box<dyn Error>> {
+    let runs = runs.max(1);
+    let mut blocks: Vec<Vec<f64>> = vec![Vec::new(); 7];
+    let mut walls = Vec::new();
+    let mut untimed = Vec::new();
+    let (mut constraints, mut iters) = (0, 0);
+    for _ in 0..runs {
+        let (b, wall, c, i) = run_once(scene, frames, iterations, true)?;
+        for (k, v) in b.iter().enumerate() {
+            blocks[k].push(*v);
+        }
+        walls.push(wall);
+        (constraints, iters) = (c, i);
+        if timer_overhead {
+            untimed.push(run_once(scene, frames, iterations, false)?.1);
+        }
+    }
+    let wall = median(walls);
+    println!(
+        "scene {scene}: {constraints} constraints, {iters} iterations, {frames} frames × {runs} runs (medians), 1 thread"
+    );
+    println!("{:<16}{:>12}{:>8}", "block", "ms/frame", "share");
+    let medians: Vec<f64> = blocks.into_iter().map(median).collect();
+    let sum: f64 = medians.iter().sum();
+    for (name, ms) in StepTimings::NAMES.iter().zip(&medians) {
+        println!("{name:<16}{ms:>12.4}{:>7.1}%", 100.0 * ms / sum.max(1e-12));
+    }
+    println!("{:<16}{:>12.4}", "blocks total", sum);
+    println!("{:<16}{:>12.4}   ({:.0} fps)", "wall", wall, 1e3 / wall);
+    let ns = wall * 1e6 / (constraints * iters).max(1) as f64;
+    let bare = bare_kernel_ns(constraints.max(1), iters.max(1));
+    println!(
+        "ns per constraint-iteration: {ns:.2} (bare XPBD distance loop: {bare:.2}, ratio {:.2})",
+        ns / bare
+    );
+    if timer_overhead {
+        let off = median(untimed);
+        println!(
+            "timers off: {off:.4} ms/frame; timer overhead {:+.2}%",
+            100.0 * (wall - off) / off
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

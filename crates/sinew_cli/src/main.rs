@@ -1,0 +1,91 @@
+//! `sinew`: headless tools for MSXPBD scenes — info, validate, bake, bench.
+
+mod bench;
+mod commands;
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Headless tools for sinew muscle scenes. A SCENE is a `.ron` file or the
+/// name of a built-in reference scene (P1, P2, T1, P3).
+#[derive(Parser)]
+#[command(name = "sinew", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Constraint table by type (the thesis' Tables 5.1–5.4) and internal-structure figures.
+    Info {
+        /// Scene file or built-in name.
+        scene: String,
+    },
+    /// Report problems in a scene or a mesh (OBJ/STL) without simulating.
+    Validate {
+        /// Scene file, built-in name, or mesh file.
+        input: String,
+    },
+    /// Simulate and write one OBJ per frame.
+    Bake {
+        /// Scene file or built-in name.
+        scene: String,
+        /// Frames to simulate (default: the scene's).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Per-block ms/frame (median of runs) and ns per constraint-iteration.
+    Bench {
+        /// Scene file or built-in name.
+        scene: String,
+        /// Frames per run.
+        #[arg(long, default_value_t = 120)]
+        frames: u32,
+        /// Measured runs (the median is reported).
+        #[arg(long, default_value_t = 7)]
+        runs: u32,
+        /// Override the global iteration count.
+        #[arg(long)]
+        iterations: Option<u32>,
+        /// Also time with block timers off, to show their overhead.
+        #[arg(long)]
+        timer_overhead: bool,
+    },
+    /// Write a built-in scene as RON.
+    Scene {
+        /// Built-in name.
+        name: String,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info { scene } => commands::info(&scene),
+        Command::Validate { input } => commands::validate(&input),
+        Command::Bake { scene, frames, out } => commands::bake(&scene, frames, &out),
+        Command::Bench {
+            scene,
+            frames,
+            runs,
+            iterations,
+            timer_overhead,
+        } => bench::run(&scene, frames, runs, iterations, timer_overhead),
+        Command::Scene { name, out } => commands::write_builtin(&name, &out),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,135 @@
+//! Keyframed scalar curves (activation) and rigid transform tracks (bones).
+
+use glam::{Affine3A, Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// Interpolation between keys.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Interpolation {
+    /// Hold the previous key.
+    Step,
+    /// Linear.
+    #[default]
+    Linear,
+    /// Smoothstep ease-in/ease-out between keys.
+    Smooth,
+}
+
+impl Interpolation {
+    fn shape(self, t: f32) -> f32 {
+        match self {
+            Self::Step => 0.0,
+            Self::Linear => t,
+            Self::Smooth => t * t * (3.0 - 2.0 * t),
+        }
+    }
+}
+
+/// Finds the key interval of `time`: `(i, j, t)` with keys i, j and fraction t.
+/// `time_at(k)` is the time of key `k`; keys are sorted. No allocation.
+fn locate(n: usize, time_at: impl Fn(usize) -> f32, time: f32) -> (usize, usize, f32) {
+    if n == 0 || time <= time_at(0) {
+        return (0, 0, 0.0);
+    }
+    if time >= time_at(n - 1) {
+        return (n - 1, n - 1, 0.0);
+    }
+    let (mut lo, mut hi) = (0, n - 1);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if time_at(mid) <= time {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let span = time_at(hi) - time_at(lo);
+    let t = if span > 0.0 {
+        (time - time_at(lo)) / span
+    } else {
+        1.0
+    };
+    (lo, hi, t)
+}
+
+/// A scalar curve of `(time s, value)` keys, held constant outside its range.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Curve {
+    /// Keys sorted by time. Units: seconds.
+    pub keys: Vec<(f32, f32)>,
+    /// Interpolation. Default: linear.
+    #[serde(default)]
+    pub interpolation: Interpolation,
+}
+
+impl Curve {
+    /// A constant curve.
+    pub fn constant(value: f32) -> Self {
+        Self {
+            keys: vec![(0.0, value)],
+            interpolation: Interpolation::Linear,
+        }
+    }
+
+    /// Value at `time` (0 for an empty curve).
+    pub fn sample(&self, time: f32) -> f32 {
+        if self.keys.is_empty() {
+            return 0.0;
+        }
+        let (i, j, t) = locate(self.keys.len(), |k| self.keys[k].0, time);
+        let (a, b) = (self.keys[i].1, self.keys[j].1);
+        a + (b - a) * self.interpolation.shape(t)
+    }
+}
+
+/// One rigid pose key.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TransformKey {
+    /// Time. Units: s.
+    pub time: f32,
+    /// Translation. Units: m.
+    pub translation: Vec3,
+    /// Rotation (unit quaternion, `x, y, z, w`).
+    #[serde(default = "identity_quat")]
+    pub rotation: Quat,
+}
+
+fn identity_quat() -> Quat {
+    Quat::IDENTITY
+}
+
+/// A keyframed rigid transform (translation + rotation).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TransformTrack {
+    /// Keys sorted by time.
+    pub keys: Vec<TransformKey>,
+    /// Interpolation. Default: linear (slerp for rotation).
+    #[serde(default)]
+    pub interpolation: Interpolation,
+}
+
+impl TransformTrack {
+    /// Pose at `time` (identity for an empty track).
+    pub fn sample(&self, time: f32) -> Affine3A {
+        if self.keys.is_empty() {
+            return Affine3A::IDENTITY;
+        }
+        let (i, j, t) = locate(self.keys.len(), |k| self.keys[k].time, time);
+        let s = self.interpolation.shape(t);
+        let (a, b) = (&self.keys[i], &self.keys[j]);
+        Affine3A::from_rotation_translation(
+            a.rotation.normalize().slerp(b.rotation.normalize(), s),
+            a.translation.lerp(b.translation, s),
+        )
+    }
+}
+
+/// Interpolates two rigid transforms (slerp + lerp), as substeps do within a frame.
+pub fn interpolate_rigid(a: Affine3A, b: Affine3A, t: f32) -> Affine3A {
+    if t >= 1.0 {
+        return b;
+    }
+    let (sa, ra, ta) = a.to_scale_rotation_translation();
+    let (sb, rb, tb) = b.to_scale_rotation_translation();
+    Affine3A::from_scale_rotation_translation(sa.lerp(sb, t), ra.slerp(rb, t), ta.lerp(tb, t))
+}

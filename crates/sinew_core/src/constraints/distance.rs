@@ -1,0 +1,140 @@
+//! Distance-type constraints: Fiber (SPEC §5.1), Internal (§5.3), Branch (§5.4).
+//!
+//! ```text
+//! C = |p_a − p_b| − σ̂(a)          ∇_a C = n, ∇_b C = −n, n = (p_a − p_b)/|p_a − p_b|
+//! ```
+//! The rest length `σ̂` depends on activation for fibres (and, optionally,
+//! branches and internal links):
+//!
+//! ```text
+//! PaperExact (Eq. 2.13–2.15):  φ = |u|,  ε = e ⊘ (1 − a0 φ),  σ̂ = |ε ∘ (1 − c a φ)|
+//! RotationInvariant:           σ̂ = sqrt(|e_⊥|² + ((1 − c a)/(1 − c a0) · e·u)²)
+//! ```
+//! with `e = r_a − r_b`, `u` the sign-aligned mean fibre of the two ends and `c`
+//! the maximum contraction (1 in the paper). The paper formula scales the
+//! *world-axis* components of `e`, so a diagonal fibre also shortens edges
+//! across it; the rotation-invariant form scales only the component along the
+//! fibre and equals the paper whenever `u` is axis-aligned. It is the default
+//! because a muscle must contract the same way whatever its orientation in the
+//! world (a bone rotating a muscle by 45° must not change how it contracts).
+
+use super::delta_lambda;
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// How fibre rest lengths depend on activation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FiberMode {
+    /// Eq. 2.12–2.15 as written (component-wise; not rotation-invariant).
+    PaperExact,
+    /// Only the edge component along the fibre shortens. Default.
+    #[default]
+    RotationInvariant,
+}
+
+/// Rest data for an activation-dependent rest length.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ActivationRest {
+    /// Rest edge vector `r_a − r_b`.
+    pub edge: Vec<Vec3>,
+    /// Unit fibre direction `u` of the edge (sign-aligned mean of the two ends).
+    pub fiber: Vec<Vec3>,
+}
+
+impl ActivationRest {
+    /// Unit fibre of an edge from its two end fibres (SPEC §5.1 guards 1–2).
+    pub fn edge_fiber(fa: Vec3, fb: Vec3) -> Vec3 {
+        let fb = if fa.dot(fb) < 0.0 { -fb } else { fb };
+        (fa + fb).try_normalize().unwrap_or(fa)
+    }
+
+    /// Rest length of constraint `i` at activation `a`.
+    pub fn rest_length(&self, i: usize, mode: FiberMode, a: f32, a0: f32, c: f32) -> f32 {
+        let a = a.clamp(0.0, 1.0);
+        let a0 = a0.clamp(0.0, 0.95);
+        let (e, u) = (self.edge[i], self.fiber[i]);
+        match mode {
+            FiberMode::PaperExact => {
+                let phi = u.abs();
+                let eps = e / (Vec3::ONE - a0 * c * phi);
+                (eps * (Vec3::ONE - a * c * phi)).length()
+            }
+            FiberMode::RotationInvariant => {
+                let along = e.dot(u);
+                let across = e - along * u;
+                let scale = (1.0 - c * a) / (1.0 - c * a0);
+                (across.length_squared() + (scale * along).powi(2)).sqrt()
+            }
+        }
+    }
+}
+
+/// A batch of distance constraints of one type.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DistanceBatch {
+    /// First particle.
+    pub a: Vec<u32>,
+    /// Second particle.
+    pub b: Vec<u32>,
+    /// Current rest length (updated once per frame from activation).
+    pub rest: Vec<f32>,
+    /// Accumulated multipliers (reset every frame / substep).
+    pub lambda: Vec<f32>,
+    /// Present when the rest length follows activation.
+    pub activation: Option<ActivationRest>,
+    /// Compliance α = 1/k. Units: m/N. `0` is rigid.
+    pub compliance: f32,
+}
+
+impl DistanceBatch {
+    /// Number of constraints.
+    pub fn len(&self) -> usize {
+        self.a.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.a.is_empty()
+    }
+
+    /// Adds a constraint with the given fixed rest length.
+    pub fn push(&mut self, a: u32, b: u32, rest: f32) {
+        self.a.push(a);
+        self.b.push(b);
+        self.rest.push(rest);
+        self.lambda.push(0.0);
+    }
+
+    /// Recomputes activation-dependent rest lengths (once per frame, SPEC §5.1 caching).
+    pub fn update_rest(&mut self, mode: FiberMode, a: f32, a0: f32, contraction: f32) {
+        if let Some(act) = &self.activation {
+            for (i, r) in self.rest.iter_mut().enumerate() {
+                *r = act.rest_length(i, mode, a, a0, contraction);
+            }
+        }
+    }
+
+    /// Constraint value `C` for constraint `i`.
+    pub fn value(&self, i: usize, p: &[Vec3]) -> f32 {
+        (p[self.a[i] as usize] - p[self.b[i] as usize]).length() - self.rest[i]
+    }
+
+    /// One Gauss–Seidel pass over the batch.
+    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        let alpha = self.compliance * inv_dt2;
+        for i in 0..self.a.len() {
+            let (ia, ib) = (self.a[i] as usize, self.b[i] as usize);
+            let d = p[ia] - p[ib];
+            let len = d.length();
+            if len < 1e-9 {
+                continue;
+            }
+            let (wa, wb) = (w[ia], w[ib]);
+            let dl = delta_lambda(len - self.rest[i], self.lambda[i], wa + wb, alpha);
+            self.lambda[i] += dl;
+            let n = d * (dl / len);
+            p[ia] += wa * n;
+            p[ib] -= wb * n;
+        }
+    }
+}

@@ -1,0 +1,73 @@
+//! Particle ↔ external point constraints: Attach, BranchAttach (SPEC §5.5–5.6),
+//! Soft and Hard (§5.8–5.9). The external point `q` is read-only (`w = 0`).
+//!
+//! ```text
+//! C = |p − q| − d0        ∇_p C = (p − q)/|p − q|
+//! Attach/BranchAttach: q = M(t) ℓ, d0 = 0
+//! Soft:  q = Σ β_k q_{T,k}(t), d0 = rest distance
+//! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
+//! ```
+
+use super::delta_lambda;
+use glam::Vec3;
+
+/// A batch of single-particle constraints towards goal points.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PointBatch {
+    /// Constrained particle.
+    pub particle: Vec<u32>,
+    /// Current goal point (world), refreshed before projection.
+    pub goal: Vec<Vec3>,
+    /// Rest distance to the goal. Units: m.
+    pub rest: Vec<f32>,
+    /// Per-constraint compliance (type compliance / painted weight). Units: m/N.
+    /// `f32::INFINITY` disables the constraint (weight 0).
+    pub compliance: Vec<f32>,
+    /// Accumulated multipliers.
+    pub lambda: Vec<f32>,
+}
+
+impl PointBatch {
+    /// Number of constraints.
+    pub fn len(&self) -> usize {
+        self.particle.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.particle.is_empty()
+    }
+
+    /// Adds a constraint.
+    pub fn push(&mut self, particle: u32, goal: Vec3, rest: f32, compliance: f32) {
+        self.particle.push(particle);
+        self.goal.push(goal);
+        self.rest.push(rest);
+        self.compliance.push(compliance);
+        self.lambda.push(0.0);
+    }
+
+    /// Constraint value `C` for constraint `i`.
+    pub fn value(&self, i: usize, p: &[Vec3]) -> f32 {
+        (p[self.particle[i] as usize] - self.goal[i]).length() - self.rest[i]
+    }
+
+    /// One Gauss–Seidel pass over the batch.
+    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        for i in 0..self.particle.len() {
+            let alpha = self.compliance[i] * inv_dt2;
+            if !alpha.is_finite() {
+                continue;
+            }
+            let k = self.particle[i] as usize;
+            let d = p[k] - self.goal[i];
+            let len = d.length();
+            if len < 1e-9 {
+                continue;
+            }
+            let dl = delta_lambda(len - self.rest[i], self.lambda[i], w[k], alpha);
+            self.lambda[i] += dl;
+            p[k] += d * (w[k] * dl / len);
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! Sliding constraint (SPEC §5.7): a vertex keeps its rest gap to the closest
+//! point `c` on the closest target, recomputed every iteration, so it can slide.
+//!
+//! ```text
+//! s = n_c·(p − c)                           signed distance (n_c outward normal at c)
+//! outside (or inside at rest):  C = |p − c| − d0,  ∇C = (p − c)/|p − c|
+//! inside but outside at rest:   C = s − d0,        ∇C = n_c   (push back out)
+//! Contact mode: C ≥ 0 only (collision), λ clamped to ≥ 0
+//! ```
+
+use super::delta_lambda;
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Whether Sliding keeps the rest gap (equality) or only prevents penetration.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SlidingMode {
+    /// Equality: the gap to the closest target stays at its rest value (SPEC default).
+    #[default]
+    KeepGap,
+    /// Inequality: the vertex may move away freely but not closer than its rest gap.
+    Contact,
+}
+
+/// One Sliding constraint per surface vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SlidingBatch {
+    /// Constrained vertex.
+    pub particle: Vec<u32>,
+    /// Compliance per constraint (type compliance / painted weight); infinite = off.
+    pub compliance: Vec<f32>,
+    /// Rest gap per (constraint, target): `rest_gap[i * targets + t]`. Units: m.
+    pub rest_gap: Vec<f32>,
+    /// Whether the vertex was outside the target at rest, per (constraint, target).
+    pub rest_outside: Vec<bool>,
+    /// Closest point on the chosen target (written by the closest-data block).
+    pub point: Vec<Vec3>,
+    /// Outward normal at `point`.
+    pub normal: Vec<Vec3>,
+    /// Chosen target slot this iteration (`u32::MAX` = none within reach).
+    pub target: Vec<u32>,
+    /// Accumulated multipliers.
+    pub lambda: Vec<f32>,
+    /// Equality or contact.
+    pub mode: SlidingMode,
+    /// Number of targets of the muscle.
+    pub targets: usize,
+}
+
+impl SlidingBatch {
+    /// Number of constraints.
+    pub fn len(&self) -> usize {
+        self.particle.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.particle.is_empty()
+    }
+
+    /// Value and gradient of constraint `i` at `p` (None when inactive).
+    pub fn value_and_gradient(&self, i: usize, p: Vec3) -> Option<(f32, Vec3)> {
+        let t = self.target[i];
+        if t == u32::MAX {
+            return None;
+        }
+        let slot = i * self.targets + t as usize;
+        let (c, n) = (self.point[i], self.normal[i]);
+        let gap = self.rest_gap[slot];
+        let s = n.dot(p - c);
+        if s < 0.0 && self.rest_outside[slot] {
+            return Some((s - gap, n));
+        }
+        let d = p - c;
+        let len = d.length();
+        if len < 1e-9 {
+            return Some((s - gap, n));
+        }
+        Some((len - gap, d / len))
+    }
+
+    /// One Gauss–Seidel pass.
+    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        for i in 0..self.particle.len() {
+            let alpha = self.compliance[i] * inv_dt2;
+            if !alpha.is_finite() {
+                continue;
+            }
+            let k = self.particle[i] as usize;
+            let Some((c, g)) = self.value_and_gradient(i, p[k]) else {
+                continue;
+            };
+            let mut dl = delta_lambda(c, self.lambda[i], w[k] * g.length_squared(), alpha);
+            if self.mode == SlidingMode::Contact {
+                // Unilateral: total λ stays ≥ 0 (it may only push outwards).
+                let total = (self.lambda[i] + dl).max(0.0);
+                dl = total - self.lambda[i];
+            }
+            self.lambda[i] += dl;
+            p[k] += g * (w[k] * dl);
+        }
+    }
+}

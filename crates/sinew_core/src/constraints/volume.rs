@@ -1,0 +1,121 @@
+//! Volume constraint with activation-driven gain (SPEC §5.2).
+//!
+//! ```text
+//! V(p)   = 1/6 Σ_(a,b,c) ((p_a − o) × (p_b − o))·(p_c − o)      o = bounding-box centre
+//! C      = V(p) − k_p(a) V0                                       (true volume, m³)
+//! ∇_a C  = 1/6 Σ (p_b − o) × (p_c − o)      over triangles with a first in cyclic order
+//! k_p(a) = G (1 + (R − 1) s(a)) / (1 + (R − 1) s(a0)),  s = clamp(a, 0, 1)
+//! ```
+//! `G` is the activation-independent volume gain, `R` the gain at full
+//! activation (1.2 = +20 %). Sums run in f64. Compliance units: m³/N.
+
+use super::delta_lambda;
+use glam::{DVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// Volume parameters of a muscle.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VolumeParams {
+    /// Create the constraint. Default: `true`.
+    pub enabled: bool,
+    /// Activation-independent gain `G` ([A] "Volume Ratio"). Default: `1.0`.
+    pub gain: f32,
+    /// Gain at full activation `R` ([A] "Volume Activation Ratio"). Default: `1.2`.
+    pub activation_gain: f32,
+    /// For an open mesh: drop the Volume constraint with a warning instead of
+    /// failing. Default: `false`.
+    pub allow_open_mesh: bool,
+}
+
+impl Default for VolumeParams {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            gain: 1.0,
+            activation_gain: 1.2,
+            allow_open_mesh: false,
+        }
+    }
+}
+
+impl VolumeParams {
+    /// Target ratio `k_p(a)` of the rest volume.
+    pub fn ratio(&self, a: f32, a0: f32) -> f32 {
+        let s = |x: f32| x.clamp(0.0, 1.0);
+        let r = self.activation_gain - 1.0;
+        self.gain * (1.0 + r * s(a)) / (1.0 + r * s(a0))
+    }
+}
+
+/// The single volume constraint of a muscle.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VolumeConstraint {
+    /// Triangles over the surface particles (fan triangulation of the polygons).
+    pub triangles: Vec<[u32; 3]>,
+    /// Number of surface particles (the first particles of the muscle).
+    pub surface_count: usize,
+    /// Rest volume `V0`. Units: m³.
+    pub rest_volume: f64,
+    /// Current target ratio `k_p(a)` (updated once per frame).
+    pub ratio: f32,
+    /// Compliance. Units: m³/N. `0` is rigid.
+    pub compliance: f32,
+    /// Accumulated multiplier.
+    pub lambda: f32,
+    /// Gradient workspace (no allocation in the step).
+    pub gradient: Vec<Vec3>,
+}
+
+impl VolumeConstraint {
+    /// Current volume of `p` (f64 accumulation about the bounding-box centre).
+    pub fn volume(&self, p: &[Vec3]) -> f64 {
+        crate::mesh::signed_volume(&self.triangles, &p[..self.surface_count])
+    }
+
+    /// Constraint value `C = V − k_p V0`.
+    pub fn value(&self, p: &[Vec3]) -> f64 {
+        self.volume(p) - self.ratio as f64 * self.rest_volume
+    }
+
+    /// Fills `self.gradient` with `∇C` and returns `(C, Σ w |∇C|²)`.
+    pub fn evaluate(&mut self, p: &[Vec3], w: &[f32]) -> (f64, f64) {
+        let surface = &p[..self.surface_count];
+        let (lo, hi) = crate::mesh::bounds_of(surface);
+        let o = (lo + hi) * 0.5;
+        let od = o.as_dvec3();
+        self.gradient.clear();
+        self.gradient.resize(self.surface_count, Vec3::ZERO);
+        let mut six_v = 0.0f64;
+        for &[a, b, c] in &self.triangles {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            let (pa, pb, pc) = (surface[a] - o, surface[b] - o, surface[c] - o);
+            let (da, db, dc): (DVec3, DVec3, DVec3) = (
+                surface[a].as_dvec3() - od,
+                surface[b].as_dvec3() - od,
+                surface[c].as_dvec3() - od,
+            );
+            six_v += da.cross(db).dot(dc);
+            self.gradient[a] += pb.cross(pc);
+            self.gradient[b] += pc.cross(pa);
+            self.gradient[c] += pa.cross(pb);
+        }
+        let mut wg = 0.0f64;
+        for (g, &wi) in self.gradient.iter_mut().zip(w) {
+            *g /= 6.0;
+            wg += (wi * g.length_squared()) as f64;
+        }
+        (six_v / 6.0 - self.ratio as f64 * self.rest_volume, wg)
+    }
+
+    /// One projection.
+    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        let (c, wg) = self.evaluate(p, w);
+        let alpha = self.compliance * inv_dt2;
+        let dl = delta_lambda(c as f32, self.lambda, wg as f32, alpha);
+        self.lambda += dl;
+        for (i, g) in self.gradient.iter().enumerate() {
+            p[i] += *g * (w[i] * dl);
+        }
+    }
+}

@@ -1,0 +1,642 @@
+//! Building a muscle: particles, masses, internal structure, fibres and the
+//! muscle's own constraints (SPEC §2, §5, §7). Target connections (Sliding,
+//! Soft, Hard) are linked by the [`Solver`](crate::solver::Solver) once every
+//! target exists.
+
+mod fiber;
+mod internal;
+mod params;
+
+pub use fiber::{fiber_field, longest_axis};
+pub use internal::{InternalStructure, InternalStructureParams};
+pub use params::{Compliances, ConnectionWeights, MassMode, MuscleParams};
+
+use crate::constraints::{
+    ActivationRest, ConstraintCounts, ConstraintKind, DistanceBatch, PointBatch, SlidingBatch,
+    VolumeConstraint,
+};
+use crate::error::BuildError;
+use crate::mesh::SurfaceMesh;
+use crate::target::ClosestHit;
+use glam::{Affine3A, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// Which surface vertices seed the internal structure.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub enum Roots {
+    /// Explicit vertex indices.
+    Vertices(Vec<u32>),
+    /// The vertices used by the muscle's attachments (tendon ends).
+    #[default]
+    Attachments,
+    /// The two vertices at the extremes of the mesh's principal axis.
+    LongestAxisTips,
+}
+
+/// Where a muscle is held.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AttachmentDesc {
+    /// Bone index in the solver, or `None` for a fixed world point.
+    pub bone: Option<usize>,
+    /// The held vertex; `None` picks the vertex nearest `point`.
+    pub vertex: Option<u32>,
+    /// Rest-pose world point used when `vertex` is `None`.
+    pub point: Option<Vec3>,
+}
+
+/// A target of a muscle: a bone with a mesh, or another muscle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetRef {
+    /// Bone index in the solver.
+    Bone(usize),
+    /// Muscle index in the solver.
+    Muscle(usize),
+}
+
+/// Optional per-vertex maps (one value per surface vertex).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VertexMaps {
+    /// Sliding weight per vertex (replaces `weights.sliding`).
+    pub sliding: Option<Vec<f32>>,
+    /// Soft weight per vertex.
+    pub soft: Option<Vec<f32>>,
+    /// Hard weight per vertex.
+    pub hard: Option<Vec<f32>>,
+    /// Combed fibre per vertex; a zero vector keeps the computed fibre.
+    pub fibers: Option<Vec<Vec3>>,
+    /// Mass multiplier per vertex.
+    pub mass: Option<Vec<f32>>,
+}
+
+/// Everything needed to build one muscle.
+#[derive(Clone, Debug)]
+pub struct MuscleDesc {
+    /// Unique name.
+    pub name: String,
+    /// Closed surface mesh in world space at the start frame.
+    pub mesh: SurfaceMesh,
+    /// Seeds of the internal structure.
+    pub roots: Roots,
+    /// Attachments.
+    pub attachments: Vec<AttachmentDesc>,
+    /// Targets (bones with meshes, other muscles).
+    pub targets: Vec<TargetRef>,
+    /// Parameters.
+    pub params: MuscleParams,
+    /// Per-vertex maps.
+    pub maps: VertexMaps,
+}
+
+/// A resolved attachment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Attachment {
+    /// Bone index, `None` for world.
+    pub bone: Option<usize>,
+    /// Held surface vertex.
+    pub vertex: u32,
+    /// Held internal point (particle index), if the structure exists.
+    pub internal_particle: Option<u32>,
+    /// Vertex rest position in the bone frame.
+    pub vertex_local: Vec3,
+    /// Internal point rest position in the bone frame.
+    pub internal_local: Vec3,
+}
+
+/// Rest anchor of a Soft or Hard constraint on a target triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceAnchor {
+    /// Target slot in the muscle's target list.
+    pub target: u32,
+    /// Triangle of the target.
+    pub triangle: u32,
+    /// Barycentric coordinates.
+    pub barycentric: Vec3,
+    /// Offset in the rest tangent frame (Hard only).
+    pub local: Vec3,
+}
+
+/// The constraint batches of a muscle, one per type.
+#[derive(Clone, Debug, Default)]
+pub struct MuscleConstraints {
+    /// Attach.
+    pub attach: PointBatch,
+    /// BranchAttach.
+    pub branch_attach: PointBatch,
+    /// Hard.
+    pub hard: PointBatch,
+    /// Soft.
+    pub soft: PointBatch,
+    /// Sliding.
+    pub sliding: SlidingBatch,
+    /// Branch.
+    pub branch: DistanceBatch,
+    /// Internal.
+    pub internal: DistanceBatch,
+    /// Fiber.
+    pub fiber: DistanceBatch,
+    /// Volume (absent for open meshes allowed by the scene).
+    pub volume: Option<VolumeConstraint>,
+    /// Rest anchors of `hard`.
+    pub hard_anchor: Vec<SurfaceAnchor>,
+    /// Rest anchors of `soft`.
+    pub soft_anchor: Vec<SurfaceAnchor>,
+}
+
+impl MuscleConstraints {
+    /// Counts per type.
+    pub fn counts(&self) -> ConstraintCounts {
+        let mut c = ConstraintCounts::default();
+        c.0[ConstraintKind::Attach as usize] = self.attach.len();
+        c.0[ConstraintKind::BranchAttach as usize] = self.branch_attach.len();
+        c.0[ConstraintKind::Hard as usize] = self.hard.len();
+        c.0[ConstraintKind::Soft as usize] = self.soft.len();
+        c.0[ConstraintKind::Sliding as usize] = self.sliding.len();
+        c.0[ConstraintKind::Branch as usize] = self.branch.len();
+        c.0[ConstraintKind::Internal as usize] = self.internal.len();
+        c.0[ConstraintKind::Fiber as usize] = self.fiber.len();
+        c.0[ConstraintKind::Volume as usize] = usize::from(self.volume.is_some());
+        c
+    }
+
+    /// Resets every λ to 0 (start of each frame or substep).
+    pub fn clear_lambdas(&mut self) {
+        for b in [
+            &mut self.attach,
+            &mut self.branch_attach,
+            &mut self.hard,
+            &mut self.soft,
+        ] {
+            b.lambda.fill(0.0);
+        }
+        for b in [&mut self.branch, &mut self.internal, &mut self.fiber] {
+            b.lambda.fill(0.0);
+        }
+        self.sliding.lambda.fill(0.0);
+        if let Some(v) = &mut self.volume {
+            v.lambda = 0.0;
+        }
+    }
+}
+
+/// A simulated muscle: particle state (surface vertices first, then internal
+/// points), constraints and per-target closest data.
+///
+/// Particle arrays are SoA `Vec`s of `Vec3` (12 B) and `f32` (4 B): the hot
+/// loops touch `p` and `w` only, so they stay dense.
+#[derive(Clone, Debug)]
+pub struct Muscle {
+    /// Unique name.
+    pub name: String,
+    /// Parameters (activation etc. may change every frame).
+    pub params: MuscleParams,
+    /// Rest mesh (topology and start-frame positions).
+    pub mesh: SurfaceMesh,
+    /// Generated internal structure.
+    pub structure: InternalStructure,
+    /// Root vertices used.
+    pub roots: Vec<u32>,
+    /// Unit fibre per particle (vertices: surface field; internal points: tangent).
+    pub fibers: Vec<Vec3>,
+    /// Positions at the start of the frame.
+    pub x: Vec<Vec3>,
+    /// Predictions (XPBD working positions).
+    pub p: Vec<Vec3>,
+    /// Velocities. Units: m/s.
+    pub v: Vec<Vec3>,
+    /// Inverse masses. Units: 1/kg.
+    pub w: Vec<f32>,
+    /// Start-frame positions.
+    pub rest: Vec<Vec3>,
+    /// Number of surface vertices (particles `0..surface_count`).
+    pub surface_count: usize,
+    /// Resolved attachments.
+    pub attachments: Vec<Attachment>,
+    /// Targets, in the order given.
+    pub targets: Vec<TargetRef>,
+    /// Solver target index of each entry of `targets` (set when linked).
+    pub target_ids: Vec<usize>,
+    /// Constraint batches.
+    pub constraints: MuscleConstraints,
+    /// Closest data per (vertex, target slot): `closest[v * targets + t]`.
+    pub closest: Vec<Option<ClosestHit>>,
+    /// Per-vertex maps given at build time.
+    pub maps: VertexMaps,
+    /// Activation was outside [0, 1] and has been reported.
+    pub activation_reported: bool,
+}
+
+impl Muscle {
+    /// Builds a muscle. `bone_transform(i)` gives bone `i`'s start-frame transform.
+    pub fn build(
+        desc: MuscleDesc,
+        bone_transform: impl Fn(usize) -> Affine3A,
+    ) -> Result<Self, BuildError> {
+        let MuscleDesc {
+            name,
+            mesh,
+            roots,
+            attachments,
+            targets,
+            params,
+            maps,
+        } = desc;
+        params.validate(&name)?;
+        let n = mesh.vertex_count();
+        for (map, len) in [
+            ("sliding", maps.sliding.as_ref().map(Vec::len)),
+            ("soft", maps.soft.as_ref().map(Vec::len)),
+            ("hard", maps.hard.as_ref().map(Vec::len)),
+            ("fibers", maps.fibers.as_ref().map(Vec::len)),
+            ("mass", maps.mass.as_ref().map(Vec::len)),
+        ] {
+            if let Some(len) = len.filter(|&l| l != n) {
+                return Err(BuildError::MapLength {
+                    muscle: name.clone(),
+                    map: map.into(),
+                    len,
+                    count: n,
+                });
+            }
+        }
+        let report = mesh.report();
+        let closed = report.is_closed_manifold();
+        if params.volume.enabled && !closed && !params.volume.allow_open_mesh {
+            return Err(BuildError::Mesh(
+                report
+                    .into_result(&mesh.source)
+                    .expect_err("mesh is not closed"),
+            ));
+        }
+        if !report.non_manifold_edges.is_empty() {
+            return Err(BuildError::Mesh(
+                report.into_result(&mesh.source).expect_err("non-manifold"),
+            ));
+        }
+        // Attachment vertices.
+        let mut attach_vertices = Vec::with_capacity(attachments.len());
+        for (i, a) in attachments.iter().enumerate() {
+            let v = match (a.vertex, a.point) {
+                (Some(v), _) => v,
+                (None, Some(point)) => nearest_vertex(&mesh.positions, point),
+                (None, None) => {
+                    return Err(BuildError::InvalidParameter {
+                        muscle: name.clone(),
+                        parameter: format!("attachments[{i}]"),
+                        value: f32::NAN,
+                        reason: "an attachment needs a vertex or a point".into(),
+                    });
+                }
+            };
+            if v as usize >= n {
+                return Err(BuildError::AttachmentVertexOutOfRange {
+                    muscle: name.clone(),
+                    attachment: i,
+                    vertex: v,
+                    count: n,
+                });
+            }
+            attach_vertices.push(v);
+        }
+        // Roots.
+        let root_list: Vec<u32> = match &roots {
+            Roots::Vertices(v) => v.clone(),
+            Roots::Attachments => attach_vertices.clone(),
+            Roots::LongestAxisTips => {
+                let axis = longest_axis(&mesh.positions);
+                let key = |i: &usize| mesh.positions[*i].dot(axis);
+                let lo = (0..n).min_by(|a, b| key(a).total_cmp(&key(b))).unwrap_or(0);
+                let hi = (0..n).max_by(|a, b| key(a).total_cmp(&key(b))).unwrap_or(0);
+                vec![lo as u32, hi as u32]
+            }
+        };
+        if let Some(&vertex) = root_list.iter().find(|&&r| r as usize >= n) {
+            return Err(BuildError::RootOutOfRange {
+                muscle: name,
+                vertex,
+                count: n,
+            });
+        }
+        if params.internal.enabled && root_list.is_empty() {
+            return Err(BuildError::NoRoots {
+                muscle: name,
+                reason: match roots {
+                    Roots::Attachments => "roots = Attachments but the muscle has no attachments",
+                    _ => "the root list is empty",
+                }
+                .into(),
+            });
+        }
+        let structure = if params.internal.enabled {
+            InternalStructure::build(&mesh, &root_list, &params.internal)
+        } else {
+            InternalStructure::default()
+        };
+        // Fibres.
+        let mut fibers = fiber_field(
+            &mesh,
+            params.internal.enabled.then_some(&structure),
+            params.fiber_smoothing,
+        );
+        if let Some(over) = &maps.fibers {
+            for (f, o) in fibers.iter_mut().zip(over) {
+                if let Some(o) = o.try_normalize() {
+                    *f = o;
+                }
+            }
+        }
+        fibers.extend_from_slice(&structure.tangents);
+        // Particles.
+        let mut rest = mesh.positions.clone();
+        rest.extend_from_slice(&structure.points);
+        let w = inverse_masses(&mesh, structure.points.len(), &params, &maps);
+        let nparticles = rest.len();
+        let mut muscle = Self {
+            name,
+            params,
+            mesh,
+            structure,
+            roots: root_list,
+            fibers,
+            x: rest.clone(),
+            p: rest.clone(),
+            v: vec![Vec3::ZERO; nparticles],
+            w,
+            rest,
+            surface_count: n,
+            attachments: Vec::new(),
+            targets,
+            target_ids: Vec::new(),
+            constraints: MuscleConstraints::default(),
+            closest: Vec::new(),
+            maps,
+            activation_reported: false,
+        };
+        muscle.build_own_constraints(closed);
+        for (a, v) in attachments.iter().zip(attach_vertices) {
+            muscle.add_attachment(a.bone, v, &bone_transform);
+        }
+        muscle.update_activation();
+        Ok(muscle)
+    }
+
+    fn build_own_constraints(&mut self, closed: bool) {
+        let c = &mut self.constraints;
+        let p = &self.params;
+        let rest = &self.rest;
+        let n = self.surface_count;
+        // Fiber: one per polygon edge, activation-driven.
+        c.fiber.compliance = p.compliance.fiber;
+        let mut act = ActivationRest::default();
+        for &[a, b] in &self.mesh.edges {
+            c.fiber
+                .push(a, b, rest[a as usize].distance(rest[b as usize]));
+            act.edge.push(rest[a as usize] - rest[b as usize]);
+            act.fiber.push(ActivationRest::edge_fiber(
+                self.fibers[a as usize],
+                self.fibers[b as usize],
+            ));
+        }
+        c.fiber.activation = Some(act);
+        // Branch and Internal.
+        c.branch.compliance = p.compliance.branch;
+        c.internal.compliance = p.compliance.internal;
+        if p.internal.enabled && !self.structure.points.is_empty() {
+            let mut act = ActivationRest::default();
+            for &[a, b] in &self.structure.branches {
+                let (ia, ib) = (n as u32 + a, n as u32 + b);
+                c.branch
+                    .push(ia, ib, rest[ia as usize].distance(rest[ib as usize]));
+                act.edge.push(rest[ia as usize] - rest[ib as usize]);
+                act.fiber.push(ActivationRest::edge_fiber(
+                    self.fibers[ia as usize],
+                    self.fibers[ib as usize],
+                ));
+            }
+            if p.branch_follows_activation {
+                c.branch.activation = Some(act);
+            }
+            let mut act = ActivationRest::default();
+            for v in 0..n as u32 {
+                let ip = n as u32 + self.structure.vertex_point[v as usize];
+                c.internal
+                    .push(v, ip, rest[v as usize].distance(rest[ip as usize]));
+                act.edge.push(rest[v as usize] - rest[ip as usize]);
+                act.fiber.push(ActivationRest::edge_fiber(
+                    self.fibers[v as usize],
+                    self.fibers[ip as usize],
+                ));
+            }
+            if p.internal_follows_activation {
+                c.internal.activation = Some(act);
+            }
+        }
+        // Volume.
+        if p.volume.enabled && closed {
+            c.volume = Some(VolumeConstraint {
+                triangles: self.mesh.triangles.clone(),
+                surface_count: n,
+                rest_volume: self.mesh.volume(),
+                ratio: 1.0,
+                compliance: p.compliance.volume,
+                lambda: 0.0,
+                gradient: Vec::with_capacity(n),
+            });
+        }
+    }
+
+    /// Adds one attachment (an Attach and, with an internal structure, a
+    /// BranchAttach on the internal point nearest the vertex).
+    pub fn add_attachment(
+        &mut self,
+        bone: Option<usize>,
+        vertex: u32,
+        bone_transform: impl Fn(usize) -> Affine3A,
+    ) {
+        let m = bone.map(&bone_transform).unwrap_or(Affine3A::IDENTITY);
+        let inv = m.inverse();
+        let pv = self.x[vertex as usize];
+        let internal_particle = (!self.structure.points.is_empty()).then(|| {
+            let k = nearest_vertex(&self.structure.points, pv);
+            self.surface_count as u32 + k
+        });
+        let pi = internal_particle.map(|i| self.x[i as usize]).unwrap_or(pv);
+        let att = Attachment {
+            bone,
+            vertex,
+            internal_particle,
+            vertex_local: inv.transform_point3(pv),
+            internal_local: inv.transform_point3(pi),
+        };
+        let c = &mut self.constraints;
+        c.attach
+            .push(vertex, pv, 0.0, self.params.compliance.attach);
+        if let Some(ip) = internal_particle {
+            c.branch_attach
+                .push(ip, pi, 0.0, self.params.compliance.branch_attach);
+        }
+        self.attachments.push(att);
+    }
+
+    /// Applies the current activation: clamps it (reporting once), then updates
+    /// fibre / branch / internal rest lengths and the volume ratio. Returns a
+    /// warning when the activation had to be clamped for the first time.
+    pub fn update_activation(&mut self) -> Option<String> {
+        let raw = self.params.activation;
+        let mut warning = None;
+        if !(0.0..=1.0).contains(&raw) {
+            if !self.activation_reported {
+                warning = Some(format!(
+                    "muscle '{}': activation {raw} outside [0, 1], clamped",
+                    self.name
+                ));
+                self.activation_reported = true;
+            }
+            self.params.activation = if raw.is_nan() {
+                0.0
+            } else {
+                raw.clamp(0.0, 1.0)
+            };
+        }
+        let p = &self.params;
+        let (a, a0, c) = (p.activation, p.rest_activation.min(0.95), p.max_contraction);
+        let k = &mut self.constraints;
+        k.fiber.update_rest(p.fiber_mode, a, a0, c);
+        k.branch.update_rest(p.fiber_mode, a, a0, c);
+        k.internal.update_rest(p.fiber_mode, a, a0, c);
+        if let Some(v) = &mut k.volume {
+            v.ratio = p.volume.ratio(a, a0);
+        }
+        warning
+    }
+
+    /// Pushes per-type compliances from `params` into the batches (after a
+    /// parameter edit; no rebuild needed).
+    pub fn apply_compliances(&mut self) {
+        let p = self.params.compliance;
+        let k = &mut self.constraints;
+        k.fiber.compliance = p.fiber;
+        k.branch.compliance = p.branch;
+        k.internal.compliance = p.internal;
+        k.attach.compliance.fill(p.attach);
+        k.branch_attach.compliance.fill(p.branch_attach);
+        if let Some(v) = &mut k.volume {
+            v.compliance = p.volume;
+        }
+        self.relink_weights();
+    }
+
+    /// Per-vertex connection weights `(sliding, soft, hard)`, normalised if asked.
+    pub fn connection_weights(&self, v: usize) -> (f32, f32, f32) {
+        let d = self.params.weights;
+        let pick = |map: &Option<Vec<f32>>, default: f32| map.as_ref().map_or(default, |m| m[v]);
+        let (s, o, h) = (
+            pick(&self.maps.sliding, d.sliding),
+            pick(&self.maps.soft, d.soft),
+            pick(&self.maps.hard, d.hard),
+        );
+        let sum = s + o + h;
+        if d.normalize && sum > 0.0 {
+            (s / sum, o / sum, h / sum)
+        } else {
+            (s, o, h)
+        }
+    }
+
+    /// Recomputes the per-constraint compliances of Sliding / Soft / Hard from
+    /// type compliances and weights (`α / weight`; weight 0 disables).
+    pub fn relink_weights(&mut self) {
+        let comp = self.params.compliance;
+        let weighted = |alpha: f32, w: f32| if w > 0.0 { alpha / w } else { f32::INFINITY };
+        for i in 0..self.constraints.sliding.len() {
+            let v = self.constraints.sliding.particle[i] as usize;
+            let (s, o, h) = self.connection_weights(v);
+            self.constraints.sliding.compliance[i] = weighted(comp.sliding, s);
+            self.constraints.soft.compliance[i] = weighted(comp.soft, o);
+            self.constraints.hard.compliance[i] = weighted(comp.hard, h);
+        }
+    }
+
+    /// Surface vertex positions (start of frame).
+    pub fn surface_positions(&self) -> &[Vec3] {
+        &self.x[..self.surface_count]
+    }
+
+    /// Internal point positions (start of frame).
+    pub fn internal_positions(&self) -> &[Vec3] {
+        &self.x[self.surface_count..]
+    }
+
+    /// Constraint counts per type.
+    pub fn counts(&self) -> ConstraintCounts {
+        self.constraints.counts()
+    }
+
+    /// Current enclosed volume of the surface (f64).
+    pub fn volume(&self) -> f64 {
+        crate::mesh::signed_volume(&self.mesh.triangles, self.surface_positions())
+    }
+
+    /// Rest (start-frame) volume.
+    pub fn rest_volume(&self) -> f64 {
+        self.mesh.volume()
+    }
+}
+
+fn nearest_vertex(points: &[Vec3], q: Vec3) -> u32 {
+    (0..points.len())
+        .min_by(|&a, &b| {
+            points[a]
+                .distance_squared(q)
+                .total_cmp(&points[b].distance_squared(q))
+        })
+        .unwrap_or(0) as u32
+}
+
+fn inverse_masses(
+    mesh: &SurfaceMesh,
+    internal: usize,
+    params: &MuscleParams,
+    maps: &VertexMaps,
+) -> Vec<f32> {
+    let n = mesh.vertex_count();
+    let mut mass = match params.mass {
+        MassMode::Uniform(m) => vec![m; n + internal],
+        MassMode::Density(rho) => {
+            let total = rho as f64 * mesh.volume().abs();
+            let mut area = vec![0.0f64; n];
+            for &[a, b, c] in &mesh.triangles {
+                let (pa, pb, pc) = (
+                    mesh.positions[a as usize],
+                    mesh.positions[b as usize],
+                    mesh.positions[c as usize],
+                );
+                let t = 0.5 * (pb - pa).cross(pc - pa).length() as f64 / 3.0;
+                area[a as usize] += t;
+                area[b as usize] += t;
+                area[c as usize] += t;
+            }
+            let sum: f64 = area.iter().sum();
+            // A surface particle carries its share of the mass; internal points
+            // get the mean vertex mass on top (the medulla is inside the volume).
+            let mut m: Vec<f32> = area.iter().map(|&a| (total * a / sum) as f32).collect();
+            let mean = (total / n as f64) as f32;
+            m.resize(n + internal, mean);
+            m
+        }
+    };
+    if let Some(mult) = &maps.mass {
+        for (m, k) in mass.iter_mut().zip(mult) {
+            *m *= k.max(1e-6);
+        }
+    }
+    mass.into_iter()
+        .map(|m| {
+            if m > 0.0 && m.is_finite() {
+                1.0 / m
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,235 @@
+//! Per-muscle parameters. Every tunable states its unit and default.
+
+use super::internal::InternalStructureParams;
+use crate::constraints::{ConstraintKind, FiberMode, SlidingMode, VolumeParams};
+use crate::error::BuildError;
+use serde::{Deserialize, Serialize};
+
+/// Compliance `α = 1/k` per constraint type. `0` is rigid; larger is softer.
+///
+/// Units: m/N for the distance-type constraints, m³/N for Volume. Tuning hint:
+/// with millimetre-to-centimetre edges and gram-scale particles at 60 Hz,
+/// `1e-6` is stiff, `1e-4` is soft rubber and `1e-2` is jelly.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Compliances {
+    /// Fiber (one per edge). Default: `2e-5`.
+    pub fiber: f32,
+    /// Volume. Default: `0` (rigid; the gain is reached exactly).
+    pub volume: f32,
+    /// Internal (vertex ↔ internal point). Default: `2e-4`.
+    pub internal: f32,
+    /// Branch (internal ↔ internal). Default: `2e-5`.
+    pub branch: f32,
+    /// Attach (vertex ↔ bone point). Default: `0` (rigid).
+    pub attach: f32,
+    /// BranchAttach (internal point ↔ bone point). Default: `0` (rigid).
+    pub branch_attach: f32,
+    /// Sliding, before the painted weight divides it. Default: `1e-3`.
+    pub sliding: f32,
+    /// Soft, before the painted weight. Default: `2e-3`.
+    pub soft: f32,
+    /// Hard, before the painted weight. Default: `5e-3`.
+    pub hard: f32,
+}
+
+impl Default for Compliances {
+    fn default() -> Self {
+        Self {
+            fiber: 2e-5,
+            volume: 0.0,
+            internal: 2e-4,
+            branch: 2e-5,
+            attach: 0.0,
+            branch_attach: 0.0,
+            sliding: 1e-3,
+            soft: 2e-3,
+            hard: 5e-3,
+        }
+    }
+}
+
+impl Compliances {
+    /// Compliance of one type.
+    pub fn get(&self, kind: ConstraintKind) -> f32 {
+        match kind {
+            ConstraintKind::Fiber => self.fiber,
+            ConstraintKind::Volume => self.volume,
+            ConstraintKind::Internal => self.internal,
+            ConstraintKind::Branch => self.branch,
+            ConstraintKind::Attach => self.attach,
+            ConstraintKind::BranchAttach => self.branch_attach,
+            ConstraintKind::Sliding => self.sliding,
+            ConstraintKind::Soft => self.soft,
+            ConstraintKind::Hard => self.hard,
+        }
+    }
+}
+
+/// Default weights of the three target connections, normalised per vertex
+/// when `normalize` is set (as AdonisFX does). A weight of 0 disables that
+/// connection for the vertex (the constraint exists but is skipped).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ConnectionWeights {
+    /// Sliding weight. Default: `1.0`.
+    pub sliding: f32,
+    /// Soft weight. Default: `0.5`.
+    pub soft: f32,
+    /// Hard weight. Default: `0.25`.
+    pub hard: f32,
+    /// Divide the three weights by their sum per vertex. Default: `true`.
+    pub normalize: bool,
+}
+
+impl Default for ConnectionWeights {
+    fn default() -> Self {
+        Self {
+            sliding: 1.0,
+            soft: 0.5,
+            hard: 0.25,
+            normalize: true,
+        }
+    }
+}
+
+/// How particle masses are assigned.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum MassMode {
+    /// Every particle has this mass. Units: kg.
+    Uniform(f32),
+    /// `ρ V_rest`, spread over the surface by one-ring area; internal points get
+    /// the mean vertex mass. Units: kg/m³. Muscle: 1060.
+    Density(f32),
+}
+
+impl Default for MassMode {
+    /// Density of muscle, 1060 kg/m³: in SI units a uniform 1 kg per vertex (the
+    /// spec's fallback) would make a 12 cm oval weigh 92 kg.
+    fn default() -> Self {
+        Self::Density(1060.0)
+    }
+}
+
+/// All parameters of one muscle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MuscleParams {
+    /// Activation `a ∈ [0, 1]` (dynamic; clamped and reported once when outside).
+    /// Default: `0`.
+    pub activation: f32,
+    /// Rest activation `a0` of the modelled shape, clamped to ≤ 0.95. Default: `0`.
+    pub rest_activation: f32,
+    /// Fraction of fibre length lost at full activation (`c` in the rest-length
+    /// formulas; the paper's value is 1). Default: `1.0`.
+    pub max_contraction: f32,
+    /// Solver iterations for this muscle; `None` uses the global count. Default: `None`.
+    pub iterations: Option<u32>,
+    /// Fibre rest-length formula. Default: [`FiberMode::RotationInvariant`].
+    pub fiber_mode: FiberMode,
+    /// Compliance per constraint type.
+    pub compliance: Compliances,
+    /// Volume constraint and activation gain.
+    pub volume: VolumeParams,
+    /// Branch rest lengths follow activation along the branch (SPEC §5.4). Default: `true`.
+    pub branch_follows_activation: bool,
+    /// Internal rest lengths follow activation (SPEC §5.3 option). Default: `false`.
+    pub internal_follows_activation: bool,
+    /// Default target-connection weights.
+    pub weights: ConnectionWeights,
+    /// Sliding behaviour. Default: [`SlidingMode::KeepGap`].
+    pub sliding_mode: SlidingMode,
+    /// Velocity damping per frame, `v ← v (1 − k_d)`. Range `[0, 1]`. Default: `0.05`.
+    pub damping: f32,
+    /// Mass assignment. Default: density 1060 kg/m³.
+    pub mass: MassMode,
+    /// Internal structure options.
+    pub internal: InternalStructureParams,
+    /// Laplacian smoothing passes of the fibre field. Default: `3`.
+    pub fiber_smoothing: u32,
+}
+
+impl Default for MuscleParams {
+    fn default() -> Self {
+        Self {
+            activation: 0.0,
+            rest_activation: 0.0,
+            max_contraction: 1.0,
+            iterations: None,
+            fiber_mode: FiberMode::default(),
+            compliance: Compliances::default(),
+            volume: VolumeParams::default(),
+            branch_follows_activation: true,
+            internal_follows_activation: false,
+            weights: ConnectionWeights::default(),
+            sliding_mode: SlidingMode::default(),
+            damping: 0.05,
+            mass: MassMode::default(),
+            internal: InternalStructureParams::default(),
+            fiber_smoothing: 3,
+        }
+    }
+}
+
+impl MuscleParams {
+    /// Rejects NaN, negative or out-of-range values with a typed error.
+    pub fn validate(&self, muscle: &str) -> Result<(), BuildError> {
+        let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {
+            muscle: muscle.to_string(),
+            parameter: parameter.to_string(),
+            value,
+            reason: reason.to_string(),
+        };
+        for kind in ConstraintKind::CANONICAL_ORDER {
+            let c = self.compliance.get(kind);
+            if !(c >= 0.0) {
+                return Err(bad(
+                    &format!("compliance.{}", kind.label()),
+                    c,
+                    "compliance must be ≥ 0 and not NaN (0 = rigid)",
+                ));
+            }
+        }
+        let checks = [
+            (
+                "activation",
+                self.activation,
+                f32::NEG_INFINITY,
+                f32::INFINITY,
+            ),
+            ("rest_activation", self.rest_activation, 0.0, 1.0),
+            ("max_contraction", self.max_contraction, 0.0, 1.0),
+            ("damping", self.damping, 0.0, 1.0),
+            (
+                "volume.gain",
+                self.volume.gain,
+                f32::MIN_POSITIVE,
+                f32::INFINITY,
+            ),
+            (
+                "volume.activation_gain",
+                self.volume.activation_gain,
+                f32::MIN_POSITIVE,
+                f32::INFINITY,
+            ),
+            ("weights.sliding", self.weights.sliding, 0.0, f32::INFINITY),
+            ("weights.soft", self.weights.soft, 0.0, f32::INFINITY),
+            ("weights.hard", self.weights.hard, 0.0, f32::INFINITY),
+        ];
+        for (name, value, lo, hi) in checks {
+            if value.is_nan() || value < lo || value > hi || value.is_infinite() {
+                return Err(bad(
+                    name,
+                    value,
+                    &format!("expected a finite value in [{lo}, {hi}]"),
+                ));
+            }
+        }
+        match self.mass {
+            MassMode::Uniform(m) | MassMode::Density(m) if !(m > 0.0 && m.is_finite()) => {
+                Err(bad("mass", m, "mass and density must be finite and > 0"))
+            }
+            _ => Ok(()),
+        }
+    }
+}

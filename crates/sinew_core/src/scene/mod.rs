@@ -1,0 +1,375 @@
+//! The RON scene format: bones (meshes + keyframed poses), muscles (mesh file
+//! or generator, roots, attachments, targets, parameters, activation curve)
+//! and solver settings. [`builtin`] makes the thesis' reference scenes.
+//!
+//! ```ron
+//! Scene(
+//!     name: "P1",
+//!     frames: 120,
+//!     settings: (iterations: 5, gravity: (0.0, -9.81, 0.0)),
+//!     bones: [
+//!         (name: "ground", shape: Some(Plane(center: (0.0, -0.04, 0.0), normal: (0.0, 1.0, 0.0), size: 0.4))),
+//!     ],
+//!     muscles: [
+//!         (
+//!             name: "oval",
+//!             mesh: Generator(Ellipsoid(center: (0.0, 0.0, 0.0), radii: (0.06, 0.025, 0.025), segments: 10, stacks: 10)),
+//!             roots: Vertices([0]),
+//!             attachments: [(vertex: Some(0)), (vertex: Some(91))],
+//!             targets: ["ground"],
+//!         ),
+//!     ],
+//! )
+//! ```
+//! Paths of mesh files are relative to the scene file.
+
+mod builtin;
+
+pub use builtin::{BUILTIN_SCENES, builtin};
+
+use crate::animation::{Curve, TransformTrack};
+use crate::error::SceneError;
+use crate::mesh::primitives::MeshGenerator;
+use crate::mesh::{LoadOptions, SurfaceMesh, load_mesh};
+use crate::muscle::{AttachmentDesc, MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
+use crate::solver::{Solver, SolverSettings};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Scene {
+    /// Scene name.
+    pub name: String,
+    /// What the scene shows.
+    pub description: String,
+    /// Frames a bake or benchmark runs by default.
+    pub frames: u32,
+    /// Solver settings.
+    pub settings: SolverSettings,
+    /// Kinematic bones (and static colliders such as planes).
+    pub bones: Vec<BoneSpec>,
+    /// Muscles.
+    pub muscles: Vec<MuscleSpec>,
+}
+
+/// A bone: its shape (optional; needed to be a target) and its animation.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct BoneSpec {
+    /// Unique name.
+    pub name: String,
+    /// Geometry in the bone's local frame.
+    pub shape: Option<BoneShape>,
+    /// Keyframed pose; empty = identity (static).
+    pub track: TransformTrack,
+}
+
+/// Geometry of a bone.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum BoneShape {
+    /// An OBJ or STL file (relative to the scene), optionally scaled.
+    Mesh {
+        /// File path.
+        file: String,
+        /// Scale factor applied on load. Default: 1.
+        #[serde(default = "one")]
+        scale: f32,
+    },
+    /// A square plane (two triangles) of side `size`, facing `normal`.
+    Plane {
+        /// Centre. Units: m.
+        center: Vec3,
+        /// Outward normal.
+        normal: Vec3,
+        /// Side length. Units: m.
+        size: f32,
+    },
+    /// A generated mesh.
+    Generated(MeshGenerator),
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+/// Where a muscle's mesh comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum MeshSource {
+    /// OBJ or STL file relative to the scene.
+    File {
+        /// File path.
+        path: String,
+        /// Triangulate polygons (diagonals carry fibres too). Default: false.
+        #[serde(default)]
+        triangulate: bool,
+        /// Scale applied on load. Default: 1.
+        #[serde(default = "one")]
+        scale: f32,
+    },
+    /// A built-in generator.
+    Generator(MeshGenerator),
+}
+
+impl Default for MeshSource {
+    fn default() -> Self {
+        Self::Generator(crate::mesh::primitives::thesis_oval(Vec3::ZERO))
+    }
+}
+
+/// An attachment in a scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct AttachmentSpec {
+    /// Bone name; `None` pins to the world.
+    pub bone: Option<String>,
+    /// Held vertex; `None` picks the vertex nearest `point`.
+    pub vertex: Option<u32>,
+    /// Rest-pose point used when `vertex` is `None`. Units: m.
+    pub point: Option<Vec3>,
+}
+
+/// A muscle in a scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MuscleSpec {
+    /// Unique name.
+    pub name: String,
+    /// Mesh file or generator.
+    pub mesh: MeshSource,
+    /// Roots of the internal structure.
+    pub roots: Roots,
+    /// Attachments.
+    pub attachments: Vec<AttachmentSpec>,
+    /// Target names (bones with shapes, or muscles).
+    pub targets: Vec<String>,
+    /// Parameters.
+    pub params: MuscleParams,
+    /// Activation over time; `None` keeps `params.activation`.
+    pub activation: Option<Curve>,
+    /// Per-vertex maps.
+    pub maps: VertexMaps,
+}
+
+impl Scene {
+    /// Reads a RON scene. Syntax errors carry line and column.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_ron(&text, path)
+    }
+
+    /// Parses RON text; `path` is used in error messages.
+    pub fn from_ron(text: &str, path: &Path) -> Result<Self, SceneError> {
+        ron::from_str(text).map_err(|e: ron::error::SpannedError| SceneError::Syntax {
+            file: path.to_path_buf(),
+            line: e.span.start.line,
+            column: e.span.start.col,
+            reason: e.code.to_string(),
+        })
+    }
+
+    /// RON text of the scene.
+    pub fn to_ron(&self) -> Result<String, SceneError> {
+        let config = ron::ser::PrettyConfig::new()
+            .depth_limit(6)
+            .struct_names(true);
+        ron::ser::to_string_pretty(self, config).map_err(|e| SceneError::Serialize(e.to_string()))
+    }
+
+    /// Writes the scene as RON.
+    pub fn save(&self, path: &Path) -> Result<(), SceneError> {
+        let text = self.to_ron()?;
+        std::fs::write(path, text).map_err(|source| SceneError::Io {
+            file: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Loads every bone and muscle mesh (paths relative to `base_dir`).
+    pub fn load_meshes(
+        &self,
+        base_dir: &Path,
+    ) -> Result<(Vec<Option<SurfaceMesh>>, Vec<SurfaceMesh>), SceneError> {
+        let bones = self
+            .bones
+            .iter()
+            .map(|b| {
+                b.shape
+                    .as_ref()
+                    .map(|s| bone_mesh(&b.name, s, base_dir))
+                    .transpose()
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let muscles = self
+            .muscles
+            .iter()
+            .map(|m| muscle_mesh(&m.name, &m.mesh, base_dir))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok((bones, muscles))
+    }
+
+    /// Builds a [`Solver`] from the scene; mesh paths are relative to `base_dir`.
+    pub fn instantiate(&self, base_dir: &Path) -> Result<Solver, SceneError> {
+        self.check_names()?;
+        let (bone_meshes, muscle_meshes) = self.load_meshes(base_dir)?;
+        let mut solver = Solver::new(self.settings.clone())?;
+        for (b, mesh) in self.bones.iter().zip(&bone_meshes) {
+            solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref());
+        }
+        let bone_index = |context: String, name: &str| {
+            solver.bone_index(name).ok_or(SceneError::UnknownReference {
+                context,
+                kind: "bone",
+                name: name.to_string(),
+            })
+        };
+        // Muscles first without muscle targets, so muscles can target each other.
+        let mut deferred = Vec::new();
+        let mut descs = Vec::new();
+        for (mi, (m, mesh)) in self.muscles.iter().zip(muscle_meshes).enumerate() {
+            let mut attachments = Vec::new();
+            for (i, a) in m.attachments.iter().enumerate() {
+                let bone = a
+                    .bone
+                    .as_deref()
+                    .map(|b| bone_index(format!("muscle '{}' attachment {i}", m.name), b))
+                    .transpose()?;
+                attachments.push(AttachmentDesc {
+                    bone,
+                    vertex: a.vertex,
+                    point: a.point,
+                });
+            }
+            let mut targets = Vec::new();
+            for (i, t) in m.targets.iter().enumerate() {
+                if let Some(b) = solver.bone_index(t) {
+                    targets.push(TargetRef::Bone(b));
+                } else if let Some(o) = self.muscles.iter().position(|o| &o.name == t) {
+                    deferred.push((mi, o));
+                } else {
+                    return Err(SceneError::UnknownReference {
+                        context: format!("muscle '{}' target {i}", m.name),
+                        kind: "target",
+                        name: t.clone(),
+                    });
+                }
+            }
+            descs.push(MuscleDesc {
+                name: m.name.clone(),
+                mesh,
+                roots: m.roots.clone(),
+                attachments,
+                targets,
+                params: m.params.clone(),
+                maps: m.maps.clone(),
+            });
+        }
+        for (mi, desc) in descs.into_iter().enumerate() {
+            let index = solver.add_muscle(desc)?;
+            solver.set_activation_curve(index, self.muscles[mi].activation.clone());
+        }
+        for (m, o) in deferred {
+            solver.add_target(m, TargetRef::Muscle(o))?;
+        }
+        solver.prepare();
+        Ok(solver)
+    }
+
+    fn check_names(&self) -> Result<(), SceneError> {
+        let mut seen = std::collections::HashSet::new();
+        for name in self
+            .bones
+            .iter()
+            .map(|b| &b.name)
+            .chain(self.muscles.iter().map(|m| &m.name))
+        {
+            if !seen.insert(name) {
+                return Err(SceneError::DuplicateName(name.clone()));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn resolve(base_dir: &Path, file: &str) -> PathBuf {
+    let p = Path::new(file);
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base_dir.join(p)
+    }
+}
+
+fn bone_mesh(name: &str, shape: &BoneShape, base_dir: &Path) -> Result<SurfaceMesh, SceneError> {
+    Ok(match shape {
+        BoneShape::Mesh { file, scale } => load_mesh(
+            &resolve(base_dir, file),
+            &LoadOptions {
+                scale: *scale,
+                ..Default::default()
+            },
+        )?,
+        BoneShape::Plane {
+            center,
+            normal,
+            size,
+        } => {
+            let n = normal.try_normalize().ok_or_else(|| SceneError::Invalid {
+                context: format!("bone '{name}' plane"),
+                reason: "normal has zero length".into(),
+            })?;
+            if !(*size > 0.0) {
+                return Err(SceneError::Invalid {
+                    context: format!("bone '{name}' plane"),
+                    reason: format!("size {size} must be > 0"),
+                });
+            }
+            let (u, v) = n.any_orthonormal_pair();
+            let h = 0.5 * size;
+            let corners = vec![
+                *center - h * u - h * v,
+                *center + h * u - h * v,
+                *center + h * u + h * v,
+                *center - h * u + h * v,
+            ];
+            // Counter-clockwise seen from the normal side.
+            let quad = if u.cross(v).dot(n) > 0.0 {
+                vec![0, 1, 2, 3]
+            } else {
+                vec![3, 2, 1, 0]
+            };
+            SurfaceMesh::new(format!("<plane {name}>"), corners, &[quad])?
+        }
+        BoneShape::Generated(g) => g.build(name)?,
+    })
+}
+
+fn muscle_mesh(
+    name: &str,
+    source: &MeshSource,
+    base_dir: &Path,
+) -> Result<SurfaceMesh, SceneError> {
+    Ok(match source {
+        MeshSource::File {
+            path,
+            triangulate,
+            scale,
+        } => load_mesh(
+            &resolve(base_dir, path),
+            &LoadOptions {
+                triangulate: *triangulate,
+                scale: *scale,
+                ..Default::default()
+            },
+        )?,
+        MeshSource::Generator(g) => g.build(name)?,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,669 @@
+//! The frame loop (SPEC §4) with the `Sequential` reference method.
+//!
+//! ```text
+//! read inputs      activation → rest lengths and volume ratio; bone poses
+//! for each substep (Small Steps; targets interpolated within the frame):
+//!     update targets   bone poses at the substep, attachment goals
+//!     integrate        v += Δt g;  v *= damping;  p = x + Δt v
+//!     λ = 0
+//!     for it in 0..N_it:
+//!         update targets   publish every muscle's p as its snapshot (BE4/BE7)
+//!         for m in muscles with it < m.iterations:
+//!             closest data (BE5), project m's constraints (BE6)
+//!     apply            v = (p − x)/Δt, x = p
+//! write back       output normals
+//! ```
+//!
+//! A muscle reads its neighbours through snapshots published at the start of
+//! the iteration, i.e. as they were at the end of the previous one (SPEC §4.2,
+//! the thesis' Alg. 3). That makes the order of muscles irrelevant within an
+//! iteration and the result deterministic.
+
+mod timings;
+
+pub use timings::StepTimings;
+use timings::Stopwatch;
+
+use crate::animation::{Curve, TransformTrack, interpolate_rigid};
+use crate::constraints::ConstraintKind;
+use crate::error::BuildError;
+use crate::mesh::SurfaceMesh;
+use crate::muscle::{Muscle, MuscleDesc, SurfaceAnchor, TargetRef};
+use crate::target::{TargetSource, TargetSurface};
+use glam::{Affine3A, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// How constraints are projected.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SolverMethod {
+    /// Gauss–Seidel, one muscle after another, in the canonical order. The
+    /// reference: bit-identical run to run.
+    #[default]
+    Sequential,
+}
+
+/// Global solver settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SolverSettings {
+    /// Frame time step. Units: s. Default: `1/60`.
+    pub dt: f32,
+    /// Global iterations per (sub)step; each muscle runs `min(own, N)`. Default: `10`.
+    pub iterations: u32,
+    /// Substeps per frame (Small Steps). Default: `1`.
+    pub substeps: u32,
+    /// Gravity as an acceleration, in real units. Units: m/s². Default: `(0, 0, 0)`.
+    pub gravity: Vec3,
+    /// Multiplies `dt` (slow motion < 1). Default: `1`.
+    pub time_scale: f32,
+    /// Scene units are `1/space_scale` of real size: gravity is divided by it.
+    /// Default: `1` (scene in metres).
+    pub space_scale: f32,
+    /// Projection method. Default: [`SolverMethod::Sequential`].
+    pub method: SolverMethod,
+    /// Order in which constraint types are projected. Default: SPEC §4.3.
+    pub projection_order: Vec<ConstraintKind>,
+    /// Measure per-block time. Default: `true`.
+    pub timers: bool,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self {
+            dt: 1.0 / 60.0,
+            iterations: 10,
+            substeps: 1,
+            gravity: Vec3::ZERO,
+            time_scale: 1.0,
+            space_scale: 1.0,
+            method: SolverMethod::Sequential,
+            projection_order: ConstraintKind::CANONICAL_ORDER.to_vec(),
+            timers: true,
+        }
+    }
+}
+
+impl SolverSettings {
+    /// Rejects NaN and out-of-range values.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {
+            muscle: "solver".into(),
+            parameter: parameter.into(),
+            value,
+            reason: reason.into(),
+        };
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return Err(bad("dt", self.dt, "must be finite and > 0"));
+        }
+        if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
+            return Err(bad("time_scale", self.time_scale, "must be finite and > 0"));
+        }
+        if !(self.space_scale > 0.0 && self.space_scale.is_finite()) {
+            return Err(bad(
+                "space_scale",
+                self.space_scale,
+                "must be finite and > 0",
+            ));
+        }
+        if self.iterations == 0 || self.substeps == 0 {
+            return Err(bad("iterations/substeps", 0.0, "must be ≥ 1"));
+        }
+        if !self.gravity.is_finite() {
+            return Err(bad("gravity", f32::NAN, "must be finite"));
+        }
+        Ok(())
+    }
+}
+
+/// A kinematic bone: a pose per frame (from its track or the host) and an
+/// optional target mesh.
+#[derive(Clone, Debug)]
+pub struct Bone {
+    /// Unique name.
+    pub name: String,
+    /// Keyframes; when empty the host sets the pose with [`Solver::set_bone_transform`].
+    pub track: TransformTrack,
+    /// Pose at the end of the current frame.
+    pub transform: Affine3A,
+    /// Pose at the start of the current frame.
+    pub previous: Affine3A,
+    /// Target surface index, if the bone has a mesh.
+    pub target: Option<usize>,
+}
+
+/// The MSXPBD solver: bones, muscles, targets and the frame loop.
+#[derive(Debug)]
+pub struct Solver {
+    /// Settings; edits take effect on the next step.
+    pub settings: SolverSettings,
+    bones: Vec<Bone>,
+    muscles: Vec<Muscle>,
+    curves: Vec<Option<Curve>>,
+    targets: Vec<TargetSurface>,
+    links_dirty: bool,
+    time: f32,
+    frame: u64,
+    timings: StepTimings,
+    warnings: Vec<String>,
+}
+
+impl Solver {
+    /// An empty solver.
+    pub fn new(settings: SolverSettings) -> Result<Self, BuildError> {
+        settings.validate()?;
+        Ok(Self {
+            settings,
+            bones: Vec::new(),
+            muscles: Vec::new(),
+            curves: Vec::new(),
+            targets: Vec::new(),
+            links_dirty: false,
+            time: 0.0,
+            frame: 0,
+            timings: StepTimings::default(),
+            warnings: Vec::new(),
+        })
+    }
+
+    /// Adds a bone posed by `track` (or by the host when the track is empty), with
+    /// an optional mesh (local frame) that muscles can target. Returns its index.
+    pub fn add_bone(
+        &mut self,
+        name: impl Into<String>,
+        track: TransformTrack,
+        mesh: Option<&SurfaceMesh>,
+    ) -> usize {
+        let name = name.into();
+        let index = self.bones.len();
+        let pose = track.sample(self.time);
+        let target = mesh.map(|m| {
+            let mut t = TargetSurface::new(
+                name.clone(),
+                TargetSource::Bone(index),
+                m.positions.clone(),
+                m.triangles.clone(),
+            );
+            t.set_transform(pose);
+            self.targets.push(t);
+            self.targets.len() - 1
+        });
+        self.bones.push(Bone {
+            name,
+            track,
+            transform: pose,
+            previous: pose,
+            target,
+        });
+        index
+    }
+
+    /// Builds and adds a muscle. Bone targets must exist; muscle targets must
+    /// have been added before (use [`Solver::add_target`] for mutual targets).
+    pub fn add_muscle(&mut self, desc: MuscleDesc) -> Result<usize, BuildError> {
+        let index = self.muscles.len();
+        for (i, t) in desc.targets.iter().enumerate() {
+            self.check_target(&desc.name, i, *t, index)?;
+        }
+        for (i, a) in desc.attachments.iter().enumerate() {
+            if let Some(b) = a.bone.filter(|&b| b >= self.bones.len()) {
+                return Err(BuildError::InvalidParameter {
+                    muscle: desc.name.clone(),
+                    parameter: format!("attachments[{i}].bone"),
+                    value: b as f32,
+                    reason: format!("there are only {} bones", self.bones.len()),
+                });
+            }
+        }
+        let bones = &self.bones;
+        let muscle = Muscle::build(desc, |b| bones[b].transform)?;
+        let mut target = TargetSurface::new(
+            muscle.name.clone(),
+            TargetSource::Muscle(index),
+            muscle.surface_positions().to_vec(),
+            muscle.mesh.triangles.clone(),
+        );
+        target.set_transform(Affine3A::IDENTITY);
+        self.targets.push(target);
+        self.muscles.push(muscle);
+        self.curves.push(None);
+        self.links_dirty = true;
+        Ok(index)
+    }
+
+    fn check_target(
+        &self,
+        muscle: &str,
+        slot: usize,
+        t: TargetRef,
+        self_index: usize,
+    ) -> Result<(), BuildError> {
+        let bad = |value: usize, reason: String| BuildError::InvalidParameter {
+            muscle: muscle.to_string(),
+            parameter: format!("targets[{slot}]"),
+            value: value as f32,
+            reason,
+        };
+        match t {
+            TargetRef::Bone(b) if b >= self.bones.len() => {
+                Err(bad(b, format!("there are only {} bones", self.bones.len())))
+            }
+            TargetRef::Bone(b) if self.bones[b].target.is_none() => Err(bad(
+                b,
+                format!("bone '{}' has no mesh to be a target", self.bones[b].name),
+            )),
+            TargetRef::Muscle(m) if m == self_index => {
+                Err(bad(m, "a muscle cannot target itself".into()))
+            }
+            TargetRef::Muscle(m) if m >= self.muscles.len() => Err(bad(
+                m,
+                format!("there are only {} muscles", self.muscles.len()),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Adds a target to an existing muscle (e.g. a muscle added later).
+    pub fn add_target(&mut self, muscle: usize, target: TargetRef) -> Result<(), BuildError> {
+        let name = self.muscles[muscle].name.clone();
+        let slot = self.muscles[muscle].targets.len();
+        self.check_target(&name, slot, target, muscle)?;
+        self.muscles[muscle].targets.push(target);
+        self.links_dirty = true;
+        Ok(())
+    }
+
+    /// Drives a muscle's activation with a curve of time (seconds).
+    pub fn set_activation_curve(&mut self, muscle: usize, curve: Option<Curve>) {
+        self.curves[muscle] = curve;
+    }
+
+    /// Sets a muscle's activation for the next step (clamped to [0, 1], reported once).
+    pub fn set_activation(&mut self, muscle: usize, activation: f32) {
+        self.muscles[muscle].params.activation = activation;
+    }
+
+    /// Sets the pose a host-driven bone reaches at the end of the next step.
+    pub fn set_bone_transform(&mut self, bone: usize, transform: Affine3A) {
+        self.bones[bone].transform = transform;
+    }
+
+    /// Bones.
+    pub fn bones(&self) -> &[Bone] {
+        &self.bones
+    }
+
+    /// Muscles.
+    pub fn muscles(&self) -> &[Muscle] {
+        &self.muscles
+    }
+
+    /// Mutable access to a muscle's parameters and state. After editing
+    /// compliances call [`Muscle::apply_compliances`].
+    pub fn muscle_mut(&mut self, index: usize) -> &mut Muscle {
+        &mut self.muscles[index]
+    }
+
+    /// Target surfaces (bone meshes, then muscle snapshots, in creation order).
+    pub fn targets(&self) -> &[TargetSurface] {
+        &self.targets
+    }
+
+    /// Index of a bone by name.
+    pub fn bone_index(&self, name: &str) -> Option<usize> {
+        self.bones.iter().position(|b| b.name == name)
+    }
+
+    /// Index of a muscle by name.
+    pub fn muscle_index(&self, name: &str) -> Option<usize> {
+        self.muscles.iter().position(|m| m.name == name)
+    }
+
+    /// Simulated time. Units: s.
+    pub fn time(&self) -> f32 {
+        self.time
+    }
+
+    /// Frames stepped so far.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Per-block times of the last step.
+    pub fn timings(&self) -> &StepTimings {
+        &self.timings
+    }
+
+    /// Warnings raised so far (clamped activations …), drained.
+    pub fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
+    }
+
+    /// The iteration count each muscle runs and the global count `N_it`.
+    fn iteration_counts(&self) -> usize {
+        let global = self.settings.iterations;
+        self.muscles
+            .iter()
+            .map(|m| m.params.iterations.unwrap_or(global))
+            .max()
+            .unwrap_or(global)
+            .max(global) as usize
+    }
+
+    /// Links targets if muscles or targets were added since the last step (the
+    /// first [`Solver::step`] does it anyway). Call it to see Sliding / Soft /
+    /// Hard counts before stepping.
+    pub fn prepare(&mut self) {
+        if self.links_dirty {
+            self.link_targets();
+        }
+    }
+
+    /// Builds Sliding / Soft / Hard for every muscle from the current geometry
+    /// (start frame, or when targets change).
+    fn link_targets(&mut self) {
+        self.publish_muscles();
+        let target_of = |t: TargetRef, bones: &[Bone], muscle_base: usize| -> usize {
+            match t {
+                TargetRef::Bone(b) => bones[b].target.expect("checked when added"),
+                TargetRef::Muscle(m) => muscle_base + m,
+            }
+        };
+        // Muscle targets follow the bone targets that existed when each was added;
+        // find them by source instead of assuming a layout.
+        let muscle_target: Vec<usize> = (0..self.muscles.len())
+            .map(|m| {
+                self.targets
+                    .iter()
+                    .position(|t| t.source == TargetSource::Muscle(m))
+                    .expect("every muscle has a target")
+            })
+            .collect();
+        for mi in 0..self.muscles.len() {
+            let m = &mut self.muscles[mi];
+            m.target_ids = m
+                .targets
+                .iter()
+                .map(|&t| match t {
+                    TargetRef::Muscle(o) => muscle_target[o],
+                    bone => target_of(bone, &self.bones, 0),
+                })
+                .collect();
+            link_muscle(m, &self.targets);
+        }
+        self.links_dirty = false;
+    }
+
+    /// Copies every muscle's predictions into its target snapshot.
+    fn publish_muscles(&mut self) {
+        for t in &mut self.targets {
+            if let TargetSource::Muscle(m) = t.source {
+                let muscle = &self.muscles[m];
+                t.publish(&muscle.p[..muscle.surface_count]);
+            }
+        }
+    }
+
+    /// Advances one frame.
+    pub fn step(&mut self) {
+        let mut timings = StepTimings::default();
+        let mut clock = Stopwatch::new(self.settings.timers);
+        // Read inputs.
+        let dt = self.settings.dt * self.settings.time_scale;
+        let end_time = self.time + dt;
+        for b in &mut self.bones {
+            b.previous = b.transform;
+            if !b.track.keys.is_empty() {
+                b.transform = b.track.sample(end_time);
+            }
+        }
+        for (m, curve) in self.muscles.iter_mut().zip(&self.curves) {
+            if let Some(c) = curve {
+                m.params.activation = c.sample(end_time);
+            }
+            if let Some(w) = m.update_activation() {
+                self.warnings.push(w);
+            }
+        }
+        self.prepare();
+        clock.lap(&mut timings.read_inputs);
+        let substeps = self.settings.substeps.max(1);
+        let h = dt / substeps as f32;
+        let inv_h2 = 1.0 / (h * h);
+        let gravity = self.settings.gravity / self.settings.space_scale;
+        let iterations = self.iteration_counts();
+        let global_iterations = self.settings.iterations;
+        for s in 0..substeps {
+            // Bones and attachment goals at the substep's end time.
+            let alpha = (s + 1) as f32 / substeps as f32;
+            for b in &self.bones {
+                if let Some(t) = b.target {
+                    self.targets[t].set_transform(interpolate_rigid(
+                        b.previous,
+                        b.transform,
+                        alpha,
+                    ));
+                }
+            }
+            let bones = &self.bones;
+            let pose = |b: Option<usize>| {
+                b.map_or(Affine3A::IDENTITY, |b| {
+                    interpolate_rigid(bones[b].previous, bones[b].transform, alpha)
+                })
+            };
+            for m in &mut self.muscles {
+                update_attachment_goals(m, &pose);
+            }
+            clock.lap(&mut timings.update_targets);
+            let damping_exp = 1.0 / substeps as f32;
+            for m in &mut self.muscles {
+                integrate(m, gravity, h, damping_exp);
+                m.constraints.clear_lambdas();
+            }
+            clock.lap(&mut timings.integrate);
+            for it in 0..iterations {
+                self.publish_muscles();
+                clock.lap(&mut timings.update_targets);
+                for m in &mut self.muscles {
+                    if it >= m.params.iterations.unwrap_or(global_iterations) as usize {
+                        continue;
+                    }
+                    closest_data(m, &self.targets);
+                    clock.lap(&mut timings.closest_data);
+                    project(m, &self.settings.projection_order, inv_h2);
+                    clock.lap(&mut timings.project);
+                }
+            }
+            for m in &mut self.muscles {
+                apply_predictions(m, h);
+            }
+            clock.lap(&mut timings.apply);
+        }
+        clock.lap(&mut timings.write_back);
+        self.time = end_time;
+        self.frame += 1;
+        self.timings = timings;
+    }
+}
+
+fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> Affine3A) {
+    let mut k = 0;
+    for (i, a) in m.attachments.iter().enumerate() {
+        let t = pose(a.bone);
+        m.constraints.attach.goal[i] = t.transform_point3(a.vertex_local);
+        if a.internal_particle.is_some() {
+            m.constraints.branch_attach.goal[k] = t.transform_point3(a.internal_local);
+            k += 1;
+        }
+    }
+}
+
+fn integrate(m: &mut Muscle, gravity: Vec3, h: f32, damping_exp: f32) {
+    let keep = (1.0 - m.params.damping).powf(damping_exp);
+    for i in 0..m.x.len() {
+        let v = (m.v[i] + h * gravity) * keep;
+        m.v[i] = v;
+        m.p[i] = m.x[i] + h * v;
+    }
+}
+
+fn apply_predictions(m: &mut Muscle, h: f32) {
+    let inv_h = 1.0 / h;
+    for i in 0..m.x.len() {
+        m.v[i] = (m.p[i] - m.x[i]) * inv_h;
+        m.x[i] = m.p[i];
+    }
+}
+
+/// Closest data (BE5): Sliding's closest point on the closest target per
+/// vertex, and the current goals of Soft and Hard on their rest triangles.
+pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface]) {
+    let nt = m.target_ids.len();
+    if nt == 0 {
+        return;
+    }
+    let c = &mut m.constraints;
+    for i in 0..c.sliding.len() {
+        let v = c.sliding.particle[i] as usize;
+        let q = m.p[v];
+        let mut best: Option<(f32, u32)> = None;
+        for (slot, &tid) in m.target_ids.iter().enumerate() {
+            let cell = &mut m.closest[i * nt + slot];
+            let warm = cell.map(|h| h.triangle);
+            *cell = targets[tid].closest(q, warm);
+            if let Some(hit) = cell
+                && best.is_none_or(|(d, _)| hit.distance < d)
+            {
+                best = Some((hit.distance, slot as u32));
+            }
+        }
+        match best {
+            Some((_, slot)) => {
+                let hit = m.closest[i * nt + slot as usize].expect("chosen hit");
+                c.sliding.point[i] = hit.point;
+                c.sliding.normal[i] = hit.normal;
+                c.sliding.target[i] = slot;
+            }
+            None => c.sliding.target[i] = u32::MAX,
+        }
+    }
+    for (i, a) in c.soft_anchor.iter().enumerate() {
+        c.soft.goal[i] =
+            targets[m.target_ids[a.target as usize]].point_at(a.triangle, a.barycentric);
+    }
+    for (i, a) in c.hard_anchor.iter().enumerate() {
+        let f = targets[m.target_ids[a.target as usize]].frame_at(a.triangle, a.barycentric);
+        c.hard.goal[i] = f.origin + Vec3::from(f.basis * glam::Vec3A::from(a.local));
+    }
+}
+
+/// Projects every constraint of `m` once, type by type in `order` (BE6).
+pub(crate) fn project(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
+    let (p, w, c) = (&mut m.p, &m.w, &mut m.constraints);
+    for &kind in order {
+        match kind {
+            ConstraintKind::Attach => c.attach.solve(p, w, inv_h2),
+            ConstraintKind::BranchAttach => c.branch_attach.solve(p, w, inv_h2),
+            ConstraintKind::Hard => c.hard.solve(p, w, inv_h2),
+            ConstraintKind::Soft => c.soft.solve(p, w, inv_h2),
+            ConstraintKind::Sliding => c.sliding.solve(p, w, inv_h2),
+            ConstraintKind::Branch => c.branch.solve(p, w, inv_h2),
+            ConstraintKind::Internal => c.internal.solve(p, w, inv_h2),
+            ConstraintKind::Fiber => c.fiber.solve(p, w, inv_h2),
+            ConstraintKind::Volume => {
+                if let Some(v) = &mut c.volume {
+                    v.solve(p, w, inv_h2);
+                }
+            }
+        }
+    }
+}
+
+/// Creates one Sliding, Soft and Hard constraint per surface vertex against
+/// the muscle's targets, from the current positions (SPEC §5.7–5.9).
+fn link_muscle(m: &mut Muscle, targets: &[TargetSurface]) {
+    let nt = m.target_ids.len();
+    let n = m.surface_count;
+    let c = &mut m.constraints;
+    c.sliding = Default::default();
+    c.soft = Default::default();
+    c.hard = Default::default();
+    c.soft_anchor.clear();
+    c.hard_anchor.clear();
+    m.closest = vec![None; n * nt];
+    if nt == 0 {
+        return;
+    }
+    c.sliding.targets = nt;
+    c.sliding.mode = m.params.sliding_mode;
+    for v in 0..n {
+        let q = m.x[v];
+        let mut best: Option<(f32, u32, crate::target::ClosestHit)> = None;
+        for (slot, &tid) in m.target_ids.iter().enumerate() {
+            let hit = targets[tid].closest(q, None);
+            m.closest[v * nt + slot] = hit;
+            match hit {
+                Some(h) => {
+                    c.sliding.rest_gap.push(h.distance);
+                    c.sliding.rest_outside.push(!h.is_inside());
+                    if best.is_none_or(|(d, _, _)| h.distance < d) {
+                        best = Some((h.distance, slot as u32, h));
+                    }
+                }
+                None => {
+                    c.sliding.rest_gap.push(0.0);
+                    c.sliding.rest_outside.push(true);
+                }
+            }
+        }
+        let Some((distance, slot, hit)) = best else {
+            continue;
+        };
+        c.sliding.particle.push(v as u32);
+        c.sliding.compliance.push(0.0);
+        c.sliding.point.push(hit.point);
+        c.sliding.normal.push(hit.normal);
+        c.sliding.target.push(slot);
+        c.sliding.lambda.push(0.0);
+        let target = &targets[m.target_ids[slot as usize]];
+        c.soft.push(v as u32, hit.point, distance, 0.0);
+        c.soft_anchor.push(SurfaceAnchor {
+            target: slot,
+            triangle: hit.triangle,
+            barycentric: hit.barycentric,
+            local: Vec3::ZERO,
+        });
+        let frame = target.frame_at(hit.triangle, hit.barycentric);
+        let local = Vec3::from(frame.basis.transpose() * glam::Vec3A::from(q - frame.origin));
+        c.hard.push(v as u32, q, 0.0, 0.0);
+        c.hard_anchor.push(SurfaceAnchor {
+            target: slot,
+            triangle: hit.triangle,
+            barycentric: hit.barycentric,
+            local,
+        });
+    }
+    // rest_gap / rest_outside were pushed for every vertex; keep them aligned
+    // with the constraints (vertices without any hit have no constraint).
+    if c.sliding.len() != n {
+        let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v as usize).collect();
+        let gap = std::mem::take(&mut c.sliding.rest_gap);
+        let out = std::mem::take(&mut c.sliding.rest_outside);
+        for v in keep {
+            c.sliding
+                .rest_gap
+                .extend_from_slice(&gap[v * nt..(v + 1) * nt]);
+            c.sliding
+                .rest_outside
+                .extend_from_slice(&out[v * nt..(v + 1) * nt]);
+        }
+        let cl = std::mem::take(&mut m.closest);
+        for &v in &c.sliding.particle {
+            m.closest
+                .extend_from_slice(&cl[v as usize * nt..(v as usize + 1) * nt]);
+        }
+    }
+    m.relink_weights();
+}
+
+#[cfg(test)]
+mod tests;
