@@ -8,7 +8,8 @@
 //!
 //! ```text
 //! PaperExact (Eq. 2.13–2.15):  φ = |u|,  ε = e ⊘ (1 − a0 φ),  σ̂ = |ε ∘ (1 − c a φ)|
-//! RotationInvariant:           σ̂ = sqrt(|e_⊥|² + ((1 − c a)/(1 − c a0) · e·u)²)
+//! RotationInvariant:           σ̂ = sqrt((β |e_⊥|)² + (λ e·u)²)
+//!                              λ = (1 − c a)/(1 − c a0),  β = sqrt(k_p(a)/k_p(a0) / λ)
 //! ```
 //! with `e = r_a − r_b`, `u` the sign-aligned mean fibre of the two ends and `c`
 //! the maximum contraction (1 in the paper). The paper formula scales the
@@ -17,6 +18,14 @@
 //! fibre and equals the paper whenever `u` is axis-aligned. It is the default
 //! because a muscle must contract the same way whatever its orientation in the
 //! world (a bone rotating a muscle by 45° must not change how it contracts).
+//!
+//! `β` is the *bulge*: in the paper, edges across the fibres keep their rest
+//! length, so a ring's circumference cannot grow and the volume gain can only
+//! be reached by stretching them against their stiffness (and one linearised
+//! volume projection per iteration then overshoots). Scaling the across-fibre
+//! component by `β` makes the rest shape itself shorter by `λ` and thicker by
+//! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
+//! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
 use super::delta_lambda;
 use glam::Vec3;
@@ -48,23 +57,54 @@ impl ActivationRest {
         (fa + fb).try_normalize().unwrap_or(fa)
     }
 
-    /// Rest length of constraint `i` at activation `a`.
-    pub fn rest_length(&self, i: usize, mode: FiberMode, a: f32, a0: f32, c: f32) -> f32 {
-        let a = a.clamp(0.0, 1.0);
-        let a0 = a0.clamp(0.0, 0.95);
+    /// Rest length of constraint `i` for the given activation scale.
+    pub fn rest_length(&self, i: usize, mode: FiberMode, s: &ActivationScale) -> f32 {
         let (e, u) = (self.edge[i], self.fiber[i]);
         match mode {
             FiberMode::PaperExact => {
                 let phi = u.abs();
-                let eps = e / (Vec3::ONE - a0 * c * phi);
-                (eps * (Vec3::ONE - a * c * phi)).length()
+                let eps = e / (Vec3::ONE - s.a0 * s.contraction * phi);
+                (eps * (Vec3::ONE - s.a * s.contraction * phi)).length()
             }
             FiberMode::RotationInvariant => {
                 let along = e.dot(u);
                 let across = e - along * u;
-                let scale = (1.0 - c * a) / (1.0 - c * a0);
-                (across.length_squared() + (scale * along).powi(2)).sqrt()
+                ((s.bulge * s.bulge) * across.length_squared() + (s.shortening * along).powi(2))
+                    .sqrt()
             }
+        }
+    }
+}
+
+/// Activation-derived factors shared by every rest length of a muscle in a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ActivationScale {
+    /// Activation, clamped to [0, 1].
+    pub a: f32,
+    /// Rest activation, clamped to [0, 0.95].
+    pub a0: f32,
+    /// Maximum contraction `c`.
+    pub contraction: f32,
+    /// `λ = (1 − c a)/(1 − c a0)`: length ratio along the fibres.
+    pub shortening: f32,
+    /// `β`: length ratio across the fibres (1 = no bulge).
+    pub bulge: f32,
+}
+
+impl ActivationScale {
+    /// Factors for activation `a`; `volume_ratio` is `k_p(a)/k_p(a0)` when the
+    /// rest shape should bulge to that volume, or `None` for no bulge.
+    pub fn new(a: f32, a0: f32, contraction: f32, volume_ratio: Option<f32>) -> Self {
+        let a = a.clamp(0.0, 1.0);
+        let a0 = a0.clamp(0.0, 0.95);
+        let shortening = (1.0 - contraction * a) / (1.0 - contraction * a0);
+        let bulge = volume_ratio.map_or(1.0, |r| (r / shortening.max(1e-3)).sqrt());
+        Self {
+            a,
+            a0,
+            contraction,
+            shortening,
+            bulge,
         }
     }
 }
@@ -106,10 +146,10 @@ impl DistanceBatch {
     }
 
     /// Recomputes activation-dependent rest lengths (once per frame, SPEC §5.1 caching).
-    pub fn update_rest(&mut self, mode: FiberMode, a: f32, a0: f32, contraction: f32) {
+    pub fn update_rest(&mut self, mode: FiberMode, scale: &ActivationScale) {
         if let Some(act) = &self.activation {
             for (i, r) in self.rest.iter_mut().enumerate() {
-                *r = act.rest_length(i, mode, a, a0, contraction);
+                *r = act.rest_length(i, mode, scale);
             }
         }
     }

@@ -24,7 +24,7 @@ mod point;
 mod sliding;
 mod volume;
 
-pub use distance::{ActivationRest, DistanceBatch, FiberMode};
+pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
 pub use point::PointBatch;
 pub use sliding::{SlidingBatch, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams};

@@ -42,9 +42,14 @@ impl Default for VolumeParams {
 impl VolumeParams {
     /// Target ratio `k_p(a)` of the rest volume.
     pub fn ratio(&self, a: f32, a0: f32) -> f32 {
+        self.gain * self.activation_ratio(a, a0)
+    }
+
+    /// The activation-driven part `k_p(a)/k_p(a0)` (without `G`).
+    pub fn activation_ratio(&self, a: f32, a0: f32) -> f32 {
         let s = |x: f32| x.clamp(0.0, 1.0);
         let r = self.activation_gain - 1.0;
-        self.gain * (1.0 + r * s(a)) / (1.0 + r * s(a0))
+        (1.0 + r * s(a)) / (1.0 + r * s(a0))
     }
 }
 
@@ -108,14 +113,30 @@ impl VolumeConstraint {
         (six_v / 6.0 - self.ratio as f64 * self.rest_volume, wg)
     }
 
-    /// One projection.
+    /// One projection. Volume is cubic in the positions, so a large violation
+    /// is not removed by one linearised step; the projection takes up to
+    /// [`VolumeConstraint::MAX_NEWTON_STEPS`] Newton steps, stopping as soon as
+    /// the step was small enough (relative |C| < 1e-3 before it) that the
+    /// quadratic residual is negligible. Usually that is one step.
     pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
-        let (c, wg) = self.evaluate(p, w);
         let alpha = self.compliance * inv_dt2;
-        let dl = delta_lambda(c as f32, self.lambda, wg as f32, alpha);
-        self.lambda += dl;
-        for (i, g) in self.gradient.iter().enumerate() {
-            p[i] += *g * (w[i] * dl);
+        let scale = self.rest_volume.abs().max(f64::MIN_POSITIVE);
+        for _ in 0..Self::MAX_NEWTON_STEPS {
+            let (c, wg) = self.evaluate(p, w);
+            let dl = delta_lambda(c as f32, self.lambda, wg as f32, alpha);
+            if dl == 0.0 {
+                break;
+            }
+            self.lambda += dl;
+            for (i, g) in self.gradient.iter().enumerate() {
+                p[i] += *g * (w[i] * dl);
+            }
+            if (c / scale).abs() < 1e-3 {
+                break;
+            }
         }
     }
+
+    /// Upper bound on Newton steps per projection.
+    pub const MAX_NEWTON_STEPS: usize = 4;
 }

@@ -213,9 +213,28 @@ impl SurfaceMesh {
         (hi - lo).length()
     }
 
-    /// Area-weighted vertex normals for the given positions (same topology).
+    /// Area-weighted vertex normals for the given positions (same topology),
+    /// from the polygons' area vectors (Newell). Unlike normals of the fan
+    /// triangulation they do not depend on which diagonal splits a quad, so a
+    /// rotationally symmetric mesh gets rotationally symmetric normals (a
+    /// twisted normal field would make fibres helical and muscles spin).
     pub fn vertex_normals(&self, positions: &[Vec3], out: &mut Vec<Vec3>) {
-        vertex_normals(&self.triangles, positions, out);
+        out.clear();
+        out.resize(positions.len(), Vec3::ZERO);
+        for poly in self.polygons() {
+            let mut n = Vec3::ZERO;
+            for k in 0..poly.len() {
+                let a = positions[poly[k] as usize];
+                let b = positions[poly[(k + 1) % poly.len()] as usize];
+                n += a.cross(b);
+            }
+            for &v in poly {
+                out[v as usize] += n;
+            }
+        }
+        for n in out.iter_mut() {
+            *n = n.normalize_or_zero();
+        }
     }
 
     /// Enclosed volume of the (closed, outward-oriented) mesh, accumulated in f64.

@@ -2,7 +2,9 @@
 //!
 //! ```text
 //! f_v = t_{b(v)}                       tangent of the internal point v links to
-//! f_v ← normalize(f_v − (f_v·n_v) n_v) projected onto the surface
+//! f_v ← normalize(f_v − (f_v·n_v) n_v) projected onto the surface, unless
+//!                                     f_v is within ~15° of the normal (tips), unless
+//!                                     f_v is within ~15° of the normal (tips)
 //! k × sign-aligned one-ring Laplacian smoothing, reprojected
 //! ```
 
@@ -24,8 +26,17 @@ pub fn fiber_field(
     let mut normals = Vec::new();
     mesh.vertex_normals(&mesh.positions, &mut normals);
     let axis = longest_axis(&mesh.positions);
-    let project =
-        |f: Vec3, nrm: Vec3| -> Vec3 { (f - f.dot(nrm) * nrm).try_normalize().unwrap_or(f) };
+    // Where the fibre is nearly normal to the surface (poles, tendon tips) the
+    // projection leaves a tiny residual in an arbitrary tangential direction;
+    // normalising it would invent a fibre, so such vertices keep theirs.
+    let project = |f: Vec3, nrm: Vec3| -> Vec3 {
+        let t = f - f.dot(nrm) * nrm;
+        if t.length_squared() < 0.0625 * f.length_squared() {
+            f.normalize_or(Vec3::X)
+        } else {
+            t.normalize()
+        }
+    };
     let mut fibers: Vec<Vec3> = (0..n)
         .map(|v| {
             let f = match structure {

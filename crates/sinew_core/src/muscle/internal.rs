@@ -7,8 +7,8 @@
 //! 4. Branch edges: P(K) — P(K') for K' at ℓ−1 sharing a mesh edge with K
 //!    (across point-less levels to the nearest lower level with points);
 //!    optionally link siblings (same level, common parent or child)
-//! 5. Internal links: every vertex → its component's point, or the
-//!    nearest point by component distance, then Euclidean distance
+//! 5. Internal links: every vertex → its component's point; tips (point-less
+//!    components) → the nearest point one ring beyond the nearest points
 //! ```
 //! A UV sphere with a pole root gives one point per latitude ring: 9 points,
 //! 8 Branch and 92 Internal for the thesis' oval (Table 5.1).
@@ -219,7 +219,12 @@ impl InternalStructure {
     }
 }
 
-/// Points of the nearest point-bearing components, by component-graph distance.
+/// Points for a point-less component (a tip): those of the *second* layer of
+/// point-bearing components by component-graph distance, or the first when
+/// there is no second. A tip and its neighbouring ring are nearly coplanar with
+/// that ring's centroid, so a link there cannot resist the tip folding through
+/// the ring (every length is preserved by that reflection); a link one ring
+/// further gives it a lever.
 fn nearest_points(
     start: u32,
     lower: &[BTreeSet<u32>],
@@ -228,6 +233,7 @@ fn nearest_points(
 ) -> Vec<u32> {
     let mut seen = BTreeSet::from([start]);
     let mut frontier = vec![start];
+    let mut first: Option<Vec<u32>> = None;
     while !frontier.is_empty() {
         let mut next = Vec::new();
         for c in frontier {
@@ -243,11 +249,17 @@ fn nearest_points(
             .map(|&d| point_of[d as usize])
             .collect();
         if !found.is_empty() {
-            return found;
+            if first.is_some() {
+                return found;
+            }
+            first = Some(found);
+        }
+        if next.is_empty() {
+            break;
         }
         frontier = next;
     }
-    Vec::new()
+    first.unwrap_or_default()
 }
 
 /// Branch tangent per point: mean of upper neighbours minus mean of lower ones

@@ -12,8 +12,8 @@ pub use internal::{InternalStructure, InternalStructureParams};
 pub use params::{Compliances, ConnectionWeights, MassMode, MuscleParams};
 
 use crate::constraints::{
-    ActivationRest, ConstraintCounts, ConstraintKind, DistanceBatch, PointBatch, SlidingBatch,
-    VolumeConstraint,
+    ActivationRest, ActivationScale, ConstraintCounts, ConstraintKind, DistanceBatch, PointBatch,
+    SlidingBatch, VolumeConstraint,
 };
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
@@ -499,11 +499,13 @@ impl Muscle {
             };
         }
         let p = &self.params;
-        let (a, a0, c) = (p.activation, p.rest_activation.min(0.95), p.max_contraction);
+        let (a, a0) = (p.activation, p.rest_activation.min(0.95));
+        let bulge = p.bulge.then(|| p.volume.activation_ratio(a, a0));
+        let scale = ActivationScale::new(a, a0, p.max_contraction, bulge);
         let k = &mut self.constraints;
-        k.fiber.update_rest(p.fiber_mode, a, a0, c);
-        k.branch.update_rest(p.fiber_mode, a, a0, c);
-        k.internal.update_rest(p.fiber_mode, a, a0, c);
+        k.fiber.update_rest(p.fiber_mode, &scale);
+        k.branch.update_rest(p.fiber_mode, &scale);
+        k.internal.update_rest(p.fiber_mode, &scale);
         if let Some(v) = &mut k.volume {
             v.ratio = p.volume.ratio(a, a0);
         }

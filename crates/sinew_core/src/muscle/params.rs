@@ -121,7 +121,7 @@ pub struct MuscleParams {
     /// Rest activation `a0` of the modelled shape, clamped to ≤ 0.95. Default: `0`.
     pub rest_activation: f32,
     /// Fraction of fibre length lost at full activation (`c` in the rest-length
-    /// formulas; the paper's value is 1). Default: `1.0`.
+    /// formulas; the paper's value is 1). Default: `0.35`.
     pub max_contraction: f32,
     /// Solver iterations for this muscle; `None` uses the global count. Default: `None`.
     pub iterations: Option<u32>,
@@ -133,8 +133,13 @@ pub struct MuscleParams {
     pub volume: VolumeParams,
     /// Branch rest lengths follow activation along the branch (SPEC §5.4). Default: `true`.
     pub branch_follows_activation: bool,
-    /// Internal rest lengths follow activation (SPEC §5.3 option). Default: `false`.
+    /// Internal rest lengths follow activation (SPEC §5.3 option): shorter along
+    /// the fibre, longer across it with `bulge`. Default: `true`.
     pub internal_follows_activation: bool,
+    /// Rotation-invariant mode: the across-fibre part of every rest length grows
+    /// by `β = sqrt(k_p / λ)` so the activated rest shape has the activated
+    /// volume (see [`crate::constraints::ActivationScale`]). Default: `true`.
+    pub bulge: bool,
     /// Default target-connection weights.
     pub weights: ConnectionWeights,
     /// Sliding behaviour. Default: [`SlidingMode::KeepGap`].
@@ -154,13 +159,14 @@ impl Default for MuscleParams {
         Self {
             activation: 0.0,
             rest_activation: 0.0,
-            max_contraction: 1.0,
+            max_contraction: 0.35,
             iterations: None,
             fiber_mode: FiberMode::default(),
             compliance: Compliances::default(),
             volume: VolumeParams::default(),
             branch_follows_activation: true,
-            internal_follows_activation: false,
+            internal_follows_activation: true,
+            bulge: true,
             weights: ConnectionWeights::default(),
             sliding_mode: SlidingMode::default(),
             damping: 0.05,

@@ -1,1 +1,220 @@
+//! Per-type projection and gradient checks on a real P1 muscle.
 
+use super::*;
+use crate::constraints::ConstraintKind as K;
+use crate::scene::builtin;
+
+/// P1 after one step (goals of Soft/Hard/Sliding filled), predictions
+/// perturbed so that every constraint is violated.
+fn violated_p1() -> (Solver, Muscle) {
+    let mut solver = builtin("P1")
+        .unwrap()
+        .instantiate(std::path::Path::new("."))
+        .unwrap();
+    solver.step();
+    let mut m = solver.muscles()[0].clone();
+    for (i, p) in m.p.iter_mut().enumerate() {
+        let k = i as f32;
+        *p += 0.004 * Vec3::new((k * 1.3).sin(), (k * 2.1).cos(), (k * 0.7).sin());
+    }
+    closest_data(&mut m, &solver.targets);
+    (solver, m)
+}
+
+/// Keeps only constraint `keep` of the batch of `kind` (and empties the others).
+fn isolate(m: &mut Muscle, kind: K, keep: usize) {
+    fn point(b: &mut crate::constraints::PointBatch, keep: usize) {
+        for v in [&mut b.rest, &mut b.compliance, &mut b.lambda] {
+            *v = vec![v[keep]];
+        }
+        b.particle = vec![b.particle[keep]];
+        b.goal = vec![b.goal[keep]];
+        b.compliance[0] = 0.0;
+    }
+    fn dist(b: &mut crate::constraints::DistanceBatch, keep: usize) {
+        b.a = vec![b.a[keep]];
+        b.b = vec![b.b[keep]];
+        b.rest = vec![b.rest[keep]];
+        b.lambda = vec![0.0];
+        b.activation = None;
+        b.compliance = 0.0;
+    }
+    let c = &mut m.constraints;
+    match kind {
+        K::Attach => point(&mut c.attach, keep),
+        K::BranchAttach => point(&mut c.branch_attach, keep),
+        K::Hard => point(&mut c.hard, keep),
+        K::Soft => point(&mut c.soft, keep),
+        K::Branch => dist(&mut c.branch, keep),
+        K::Internal => dist(&mut c.internal, keep),
+        K::Fiber => dist(&mut c.fiber, keep),
+        K::Sliding => {
+            let s = &mut c.sliding;
+            let nt = s.targets;
+            s.particle = vec![s.particle[keep]];
+            s.compliance = vec![0.0];
+            s.rest_gap = s.rest_gap[keep * nt..(keep + 1) * nt].to_vec();
+            s.rest_outside = s.rest_outside[keep * nt..(keep + 1) * nt].to_vec();
+            s.point = vec![s.point[keep]];
+            s.normal = vec![s.normal[keep]];
+            s.target = vec![s.target[keep]];
+            s.lambda = vec![0.0];
+        }
+        K::Volume => c.volume.as_mut().unwrap().compliance = 0.0,
+    }
+}
+
+/// `(C, scale)` of the single remaining constraint of `kind`.
+fn value(m: &Muscle, kind: K) -> (f64, f64) {
+    let c = &m.constraints;
+    let p = &m.p;
+    let edge = |b: &crate::constraints::DistanceBatch| (b.value(0, p) as f64, b.rest[0] as f64);
+    match kind {
+        K::Attach => (c.attach.value(0, p) as f64, 0.01),
+        K::BranchAttach => (c.branch_attach.value(0, p) as f64, 0.01),
+        K::Hard => (c.hard.value(0, p) as f64, 0.01),
+        K::Soft => (c.soft.value(0, p) as f64, c.soft.rest[0].max(0.01) as f64),
+        K::Sliding => {
+            let v = c.sliding.particle[0] as usize;
+            let (cv, _) = c.sliding.value_and_gradient(0, p[v]).unwrap();
+            (cv as f64, 0.01)
+        }
+        K::Branch => edge(&c.branch),
+        K::Internal => edge(&c.internal),
+        K::Fiber => edge(&c.fiber),
+        K::Volume => {
+            let v = c.volume.as_ref().unwrap();
+            (v.value(p), v.rest_volume)
+        }
+    }
+}
+
+#[test]
+fn one_projection_with_zero_compliance_satisfies_each_type() {
+    for kind in ConstraintKind::CANONICAL_ORDER {
+        let (_, mut m) = violated_p1();
+        let keep = 3.min(match kind {
+            K::Attach | K::BranchAttach => 0,
+            _ => 3,
+        });
+        isolate(&mut m, kind, keep);
+        let (before, scale) = value(&m, kind);
+        assert!(
+            before.abs() / scale > 1e-3,
+            "{kind:?} not violated: {before}"
+        );
+        project(&mut m, &[kind], 3600.0);
+        let (after, _) = value(&m, kind);
+        assert!(
+            after.abs() / scale < 1e-5,
+            "{kind:?}: |C| {before:e} → {after:e} (scale {scale:e})"
+        );
+    }
+}
+
+#[test]
+fn gradients_match_central_finite_differences() {
+    let (_, mut m) = violated_p1();
+    let h = 1e-4f32;
+    let check = |analytic: Vec3, f: &dyn Fn(Vec3) -> f64, at: Vec3, what: &str| {
+        let mut fd = Vec3::ZERO;
+        for k in 0..3 {
+            let mut e = Vec3::ZERO;
+            e[k] = h;
+            fd[k] = ((f(at + e) - f(at - e)) / (2.0 * h as f64)) as f32;
+        }
+        let err = (fd - analytic).length() / analytic.length().max(1e-12);
+        assert!(
+            err < 1e-3,
+            "{what}: analytic {analytic} vs FD {fd} (rel {err:e})"
+        );
+    };
+    // Distance type (Fiber; Internal and Branch share the kernel).
+    let f = &m.constraints.fiber;
+    let (a, b, rest) = (f.a[0] as usize, f.b[0] as usize, f.rest[0]);
+    let pb = m.p[b];
+    let n = (m.p[a] - pb).normalize();
+    check(
+        n,
+        &|x| (x.as_dvec3() - pb.as_dvec3()).length() - rest as f64,
+        m.p[a],
+        "fiber",
+    );
+    // Point type (Attach; BranchAttach, Soft, Hard share it).
+    let s = &m.constraints.soft;
+    let (v, goal, rest) = (s.particle[0] as usize, s.goal[0], s.rest[0]);
+    check(
+        (m.p[v] - goal).normalize(),
+        &|x| (x.as_dvec3() - goal.as_dvec3()).length() - rest as f64,
+        m.p[v],
+        "soft",
+    );
+    // Sliding.
+    let sl = m.constraints.sliding.clone();
+    let v = sl.particle[0] as usize;
+    let (_, g) = sl.value_and_gradient(0, m.p[v]).unwrap();
+    check(
+        g,
+        &|x| sl.value_and_gradient(0, x).unwrap().0 as f64,
+        m.p[v],
+        "sliding",
+    );
+    // Volume: gradient of every vertex against FD of the volume.
+    let w = m.w.clone();
+    let mut vol = m.constraints.volume.clone().unwrap();
+    vol.evaluate(&m.p, &w);
+    for i in [0usize, 17, 45, 91] {
+        let mut q = m.p.clone();
+        let grad = vol.gradient[i];
+        let mut f = |x: Vec3| {
+            q[i] = x;
+            vol.volume(&q)
+        };
+        let mut fd = Vec3::ZERO;
+        for k in 0..3 {
+            let mut e = Vec3::ZERO;
+            e[k] = 1e-4;
+            let (hi, lo) = (f(m.p[i] + e), f(m.p[i] - e));
+            fd[k] = ((hi - lo) / 2e-4) as f32;
+        }
+        let err = (fd - grad).length() / grad.length();
+        assert!(
+            err < 1e-3,
+            "volume vertex {i}: {grad} vs {fd} (rel {err:e})"
+        );
+    }
+    m.constraints.clear_lambdas();
+}
+
+#[test]
+fn substeps_reset_lambda_and_interpolate_bones() {
+    let mut scene = builtin("P1").unwrap();
+    scene.settings.substeps = 4;
+    scene.settings.iterations = 1;
+    let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
+    for _ in 0..30 {
+        solver.step();
+    }
+    assert!(solver.muscles()[0].x.iter().all(|p| p.is_finite()));
+    // A host-driven bone moved within a frame: the substeps see intermediate poses.
+    let b = solver.bones()[0].transform;
+    assert_eq!(interpolate_rigid(b, b, 0.5), b);
+}
+
+#[test]
+fn sequential_is_bit_identical_run_to_run() {
+    let run = || {
+        let mut s = builtin("P3")
+            .unwrap()
+            .instantiate(std::path::Path::new("."))
+            .unwrap();
+        for _ in 0..40 {
+            s.step();
+        }
+        s.muscles()
+            .iter()
+            .flat_map(|m| m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)))
+            .collect::<Vec<u32>>()
+    };
+    assert_eq!(run(), run(), "Sequential must be bit-identical run to run");
+}
