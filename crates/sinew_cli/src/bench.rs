@@ -19,13 +19,25 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// What one run measured.
+struct RunResult {
+    /// Per-block ms/frame.
+    blocks: [f64; 7],
+    /// Wall ms/frame.
+    wall: f64,
+    /// Constraints in the scene.
+    constraints: usize,
+    /// Global iterations.
+    iterations: usize,
+}
+
 /// One run: per-block ms/frame and wall ms/frame.
 fn run_once(
     scene: &str,
     frames: u32,
     iterations: Option<u32>,
     timers: bool,
-) -> Result<([f64; 7], f64, usize, usize), Box<dyn Error>> {
+) -> Result<RunResult, Box<dyn Error>> {
     let (_, mut solver) = load_solver(scene)?;
     if let Some(i) = iterations {
         solver.settings.iterations = i;
@@ -45,8 +57,12 @@ fn run_once(
     let wall = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
     let per_frame = blocks.map(|d| d.as_secs_f64() * 1e3 / frames as f64);
     let constraints = solver.muscles().iter().map(|m| m.counts().total()).sum();
-    let iters = solver.settings.iterations as usize;
-    Ok((per_frame, wall, constraints, iters))
+    Ok(RunResult {
+        blocks: per_frame,
+        wall,
+        constraints,
+        iterations: solver.settings.iterations as usize,
+    })
 }
 
 /// A bare XPBD distance loop over `n` constraints on a chain: the practical
@@ -101,14 +117,14 @@ pub fn run(
     let mut untimed = Vec::new();
     let (mut constraints, mut iters) = (0, 0);
     for _ in 0..runs {
-        let (b, wall, c, i) = run_once(scene, frames, iterations, true)?;
-        for (k, v) in b.iter().enumerate() {
+        let r = run_once(scene, frames, iterations, true)?;
+        for (k, v) in r.blocks.iter().enumerate() {
             blocks[k].push(*v);
         }
-        walls.push(wall);
-        (constraints, iters) = (c, i);
+        walls.push(r.wall);
+        (constraints, iters) = (r.constraints, r.iterations);
         if timer_overhead {
-            untimed.push(run_once(scene, frames, iterations, false)?.1);
+            untimed.push(run_once(scene, frames, iterations, false)?.wall);
         }
     }
     let wall = median(walls);

@@ -1,4 +1,4 @@
-//! # sinew_core
+//! # `sinew_core`
 //!
 //! The MSXPBD muscle solver (Romeo et al. 2018, as parallelised in Monteagudo's
 //! 2019 thesis): muscles are closed surface meshes plus an internal "medulla",

@@ -131,6 +131,3 @@ pub fn delta_lambda(c: f32, lambda: f32, weighted_gradient_sq: f32, alpha_tilde:
         0.0
     }
 }
-
-#[cfg(test)]
-mod tests;

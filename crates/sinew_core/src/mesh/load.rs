@@ -1,4 +1,4 @@
-//! OBJ (tobj) and STL (stl_io) loading into [`SurfaceMesh`].
+//! OBJ (`tobj`) and STL (`stl_io`) loading into [`SurfaceMesh`].
 
 use super::{SurfaceMesh, bounds_of, weld_positions};
 use crate::error::MeshError;
@@ -112,7 +112,6 @@ fn read_obj(path: &Path) -> Result<Raw, MeshError> {
         triangulate: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |_| {
         Ok((Vec::new(), Default::default()))

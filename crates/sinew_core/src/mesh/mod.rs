@@ -145,7 +145,7 @@ impl SurfaceMesh {
         let min_area = 1e-12 * diag * diag;
         for (face, poly) in self.polygons().enumerate() {
             let area = polygon_area(&self.positions, poly);
-            if !(area > min_area) {
+            if area.is_nan() || area <= min_area {
                 return Err(MeshError::DegenerateFace {
                     file: self.source.clone(),
                     face,
@@ -353,6 +353,3 @@ pub fn weld_positions(positions: &[Vec3], tolerance: f32) -> (Vec<Vec3>, Vec<u32
     }
     (unique, remap)
 }
-
-#[cfg(test)]
-mod tests;

@@ -188,7 +188,7 @@ impl MuscleParams {
         };
         for kind in ConstraintKind::CANONICAL_ORDER {
             let c = self.compliance.get(kind);
-            if !(c >= 0.0) {
+            if c.is_nan() || c < 0.0 {
                 return Err(bad(
                     &format!("compliance.{}", kind.label()),
                     c,

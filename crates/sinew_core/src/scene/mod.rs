@@ -323,7 +323,7 @@ fn bone_mesh(name: &str, shape: &BoneShape, base_dir: &Path) -> Result<SurfaceMe
                 context: format!("bone '{name}' plane"),
                 reason: "normal has zero length".into(),
             })?;
-            if !(*size > 0.0) {
+            if size.is_nan() || *size <= 0.0 {
                 return Err(SceneError::Invalid {
                     context: format!("bone '{name}' plane"),
                     reason: format!("size {size} must be > 0"),

@@ -1,1 +1,38 @@
+use super::*;
 
+#[test]
+fn every_builtin_round_trips_through_ron() {
+    for name in BUILTIN_SCENES {
+        let scene = builtin(name).unwrap();
+        let text = scene.to_ron().unwrap();
+        let back = Scene::from_ron(&text, Path::new("mem.ron")).unwrap();
+        assert_eq!(back, scene, "{name}");
+    }
+}
+
+#[test]
+fn plane_bone_faces_its_normal() {
+    let mesh = bone_mesh(
+        "ground",
+        &BoneShape::Plane {
+            center: Vec3::ZERO,
+            normal: Vec3::Y,
+            size: 1.0,
+        },
+        Path::new("."),
+    )
+    .unwrap();
+    let mut normals = Vec::new();
+    mesh.vertex_normals(&mesh.positions, &mut normals);
+    assert!(normals.iter().all(|n| n.dot(Vec3::Y) > 0.999));
+}
+
+#[test]
+fn duplicate_names_are_rejected() {
+    let mut scene = builtin("P2").unwrap();
+    scene.muscles[1].name = "oval".into();
+    assert!(matches!(
+        scene.instantiate(Path::new(".")),
+        Err(SceneError::DuplicateName(_))
+    ));
+}

@@ -140,6 +140,8 @@ pub struct Solver {
     muscles: Vec<Muscle>,
     curves: Vec<Option<Curve>>,
     targets: Vec<TargetSurface>,
+    /// Target indices of muscles that some muscle targets (published per iteration).
+    published: Vec<usize>,
     links_dirty: bool,
     time: f32,
     frame: u64,
@@ -157,6 +159,7 @@ impl Solver {
             muscles: Vec::new(),
             curves: Vec::new(),
             targets: Vec::new(),
+            published: Vec::new(),
             links_dirty: false,
             time: 0.0,
             frame: 0,
@@ -361,6 +364,10 @@ impl Solver {
     /// Builds Sliding / Soft / Hard for every muscle from the current geometry
     /// (start frame, or when targets change).
     fn link_targets(&mut self) {
+        // Link against every muscle's current geometry.
+        self.published = (0..self.targets.len())
+            .filter(|&t| matches!(self.targets[t].source, TargetSource::Muscle(_)))
+            .collect();
         self.publish_muscles();
         let target_of = |t: TargetRef, bones: &[Bone], muscle_base: usize| -> usize {
             match t {
@@ -390,12 +397,25 @@ impl Solver {
                 .collect();
             link_muscle(m, &self.targets);
         }
+        // From now on only muscles somebody targets need a snapshot.
+        let mut used: Vec<usize> = self
+            .muscles
+            .iter()
+            .flat_map(|m| m.target_ids.clone())
+            .collect();
+        used.sort_unstable();
+        used.dedup();
+        self.published = used
+            .into_iter()
+            .filter(|&t| matches!(self.targets[t].source, TargetSource::Muscle(_)))
+            .collect();
         self.links_dirty = false;
     }
 
-    /// Copies every muscle's predictions into its target snapshot.
+    /// Copies the predictions of every targeted muscle into its snapshot.
     fn publish_muscles(&mut self) {
-        for t in &mut self.targets {
+        for &ti in &self.published {
+            let t = &mut self.targets[ti];
             if let TargetSource::Muscle(m) = t.source {
                 let muscle = &self.muscles[m];
                 t.publish(&muscle.p[..muscle.surface_count]);
