@@ -157,15 +157,34 @@ impl TargetSurface {
 
     /// Closest point to `query` (world). `warm` is last iteration's triangle.
     pub fn closest(&self, query: Vec3, warm: Option<u32>) -> Option<ClosestHit> {
+        self.closest_within(query, warm, f32::MAX)
+    }
+
+    /// Closest point to `query` no farther than `max_distance` (world units;
+    /// rigid transforms keep distances), or `None`. A tight bound prunes most
+    /// of the tree: a muscle choosing its closest target passes the best
+    /// distance found so far on the other targets.
+    pub fn closest_within(
+        &self,
+        query: Vec3,
+        warm: Option<u32>,
+        max_distance: f32,
+    ) -> Option<ClosestHit> {
         let q = self.inverse.transform_point3(query);
         let mut best: Option<(f32, u32, Vec3, Vec3)> = None;
-        let mut bound = f32::MAX;
+        let mut bound = if max_distance < f32::MAX {
+            max_distance * max_distance
+        } else {
+            f32::MAX
+        };
         if let Some(t) = warm.filter(|&t| (t as usize) < self.triangles.len()) {
             let (c, bary) = self.closest_on_triangle(t, q);
             let d2 = c.distance_squared(q);
-            best = Some((d2, t, c, bary));
-            // A slightly larger bound keeps the warm triangle on ties.
-            bound = d2 * (1.0 + 1e-5) + 1e-20;
+            if d2 <= bound {
+                best = Some((d2, t, c, bary));
+                // A slightly larger bound keeps the warm triangle on ties.
+                bound = d2 * (1.0 + 1e-5) + 1e-20;
+            }
         }
         let qa = Vec3A::from(q);
         let found = self.bvh.find_best(

@@ -546,11 +546,22 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface]) {
         let v = c.sliding.particle[i] as usize;
         let q = m.p[v];
         let mut best: Option<(f32, u32)> = None;
-        for (slot, &tid) in m.target_ids.iter().enumerate() {
+        // Last iteration's target first; every other search is bounded by the
+        // best distance so far (Sliding only needs the closest target).
+        let first = c.sliding.target[i] as usize;
+        let order = (first < nt)
+            .then_some(first)
+            .into_iter()
+            .chain((0..nt).filter(|&s| s != first));
+        for slot in order {
             let cell = &mut m.closest[i * nt + slot];
             let warm = cell.map(|h| h.triangle);
-            *cell = targets[tid].closest(q, warm);
-            if let Some(hit) = cell
+            let bound = best.map_or(f32::MAX, |(d, _)| d);
+            let hit = targets[m.target_ids[slot]].closest_within(q, warm, bound);
+            if hit.is_some() {
+                *cell = hit;
+            }
+            if let Some(hit) = hit
                 && best.is_none_or(|(d, _)| hit.distance < d)
             {
                 best = Some((hit.distance, slot as u32));
