@@ -585,7 +585,8 @@ impl Muscle {
     }
 }
 
-fn nearest_vertex(points: &[Vec3], q: Vec3) -> u32 {
+/// Index of the point nearest `q` (0 for an empty slice).
+pub fn nearest_vertex(points: &[Vec3], q: Vec3) -> u32 {
     (0..points.len())
         .min_by(|&a, &b| {
             points[a]

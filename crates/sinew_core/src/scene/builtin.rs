@@ -10,7 +10,7 @@
 use super::{AttachmentSpec, BoneShape, BoneSpec, MeshSource, MuscleSpec, Scene};
 use crate::animation::{Curve, Interpolation};
 use crate::mesh::primitives::{MeshGenerator, thesis_oval};
-use crate::muscle::{MuscleParams, Roots};
+use crate::muscle::{MuscleParams, Roots, nearest_vertex};
 use crate::solver::SolverSettings;
 use glam::Vec3;
 
@@ -167,7 +167,7 @@ fn p3() -> Scene {
     // Tips: distal pole (0), the two head poles (last vertex of each head), and a
     // second distal vertex (first ring) — four attachment points as in P3.
     let head_b_tip = n - 1;
-    let head_a_tip = nearest_vertex(&biceps_mesh, Vec3::new(-0.16, 0.01, 0.025));
+    let head_a_tip = nearest_vertex(&biceps_mesh.positions, Vec3::new(-0.16, 0.01, 0.025));
     let biceps = MuscleSpec {
         name: "biceps".into(),
         mesh: MeshSource::Generator(biceps_gen),
@@ -199,15 +199,4 @@ fn p3() -> Scene {
         bones: vec![ground(-0.075, 0.6)],
         muscles: vec![biceps, brachialis],
     }
-}
-
-/// The vertex nearest `tip` (generators put each head's pole at its tip).
-fn nearest_vertex(mesh: &crate::mesh::SurfaceMesh, tip: Vec3) -> u32 {
-    (0..mesh.vertex_count() as u32)
-        .min_by(|&a, &b| {
-            mesh.positions[a as usize]
-                .distance_squared(tip)
-                .total_cmp(&mesh.positions[b as usize].distance_squared(tip))
-        })
-        .unwrap_or(0)
 }
