@@ -369,12 +369,6 @@ impl Solver {
             .filter(|&t| matches!(self.targets[t].source, TargetSource::Muscle(_)))
             .collect();
         self.publish_muscles();
-        let target_of = |t: TargetRef, bones: &[Bone], muscle_base: usize| -> usize {
-            match t {
-                TargetRef::Bone(b) => bones[b].target.expect("checked when added"),
-                TargetRef::Muscle(m) => muscle_base + m,
-            }
-        };
         // Muscle targets follow the bone targets that existed when each was added;
         // find them by source instead of assuming a layout.
         let muscle_target: Vec<usize> = (0..self.muscles.len())
@@ -391,8 +385,8 @@ impl Solver {
                 .targets
                 .iter()
                 .map(|&t| match t {
+                    TargetRef::Bone(b) => self.bones[b].target.expect("checked when added"),
                     TargetRef::Muscle(o) => muscle_target[o],
-                    bone => target_of(bone, &self.bones, 0),
                 })
                 .collect();
             link_muscle(m, &self.targets);
