@@ -4,6 +4,16 @@
 //! V(p)   = 1/6 Σ_(a,b,c) ((p_a − o) × (p_b − o))·(p_c − o)      o = bounding-box centre
 //! C      = V(p) − k_p(a) V0                                       (true volume, m³)
 //! ∇_a C  = 1/6 Σ (p_b − o) × (p_c − o)      over triangles with a first in cyclic order
+//! ```
+//! The triangles are the mesh's triangles, and for a polygon with more than
+//! three vertices the fan `(p_i, p_i+1, m)` about its vertex centroid
+//! `m = mean(p_i)`; the centroid's gradient is shared equally by the
+//! polygon's vertices. A first-vertex fan would be chiral on a quad mesh (every
+//! quad split along "the same" diagonal) and its gradient twists the muscle
+//! about its axis at every projection — the free T1 oval ended a cycle
+//! twisted by ≈ 1 % of its diagonal (see [`crate::mesh::polygon_volume`]).
+//!
+//! ```text
 //! k_p(a) = G (1 + (R − 1) s(a)) / (1 + (R − 1) s(a0)),  s = clamp(a, 0, 1)
 //! ```
 //! `G` is the activation-independent volume gain, `R` the gain at full
@@ -56,8 +66,10 @@ impl VolumeParams {
 /// The single volume constraint of a muscle.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VolumeConstraint {
-    /// Triangles over the surface particles (fan triangulation of the polygons).
-    pub triangles: Vec<[u32; 3]>,
+    /// Start of every surface polygon in `polygon_indices`, plus one final entry.
+    pub polygon_offsets: Vec<u32>,
+    /// Surface-particle indices of the polygons, counter-clockwise from outside.
+    pub polygon_indices: Vec<u32>,
     /// Number of surface particles (the first particles of the muscle).
     pub surface_count: usize,
     /// Rest volume `V0`. Units: m³.
@@ -75,7 +87,11 @@ pub struct VolumeConstraint {
 impl VolumeConstraint {
     /// Current volume of `p` (f64 accumulation about the bounding-box centre).
     pub fn volume(&self, p: &[Vec3]) -> f64 {
-        crate::mesh::signed_volume(&self.triangles, &p[..self.surface_count])
+        crate::mesh::polygon_volume(
+            &self.polygon_offsets,
+            &self.polygon_indices,
+            &p[..self.surface_count],
+        )
     }
 
     /// Constraint value `C = V − k_p V0`.
@@ -91,19 +107,35 @@ impl VolumeConstraint {
         let od = o.as_dvec3();
         self.gradient.clear();
         self.gradient.resize(self.surface_count, Vec3::ZERO);
+        let rel = |i: u32| surface[i as usize] - o;
+        let reld = |i: u32| surface[i as usize].as_dvec3() - od;
         let mut six_v = 0.0f64;
-        for &[a, b, c] in &self.triangles {
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            let (pa, pb, pc) = (surface[a] - o, surface[b] - o, surface[c] - o);
-            let (da, db, dc): (DVec3, DVec3, DVec3) = (
-                surface[a].as_dvec3() - od,
-                surface[b].as_dvec3() - od,
-                surface[c].as_dvec3() - od,
-            );
-            six_v += da.cross(db).dot(dc);
-            self.gradient[a] += pb.cross(pc);
-            self.gradient[b] += pc.cross(pa);
-            self.gradient[c] += pa.cross(pb);
+        for w in self.polygon_offsets.windows(2) {
+            let poly = &self.polygon_indices[w[0] as usize..w[1] as usize];
+            if let [a, b, c] = *poly {
+                let (pa, pb, pc) = (rel(a), rel(b), rel(c));
+                six_v += reld(a).cross(reld(b)).dot(reld(c));
+                self.gradient[a as usize] += pb.cross(pc);
+                self.gradient[b as usize] += pc.cross(pa);
+                self.gradient[c as usize] += pa.cross(pb);
+                continue;
+            }
+            let k = poly.len();
+            let m = poly.iter().map(|&i| rel(i)).sum::<Vec3>() / k as f32;
+            let md = poly.iter().map(|&i| reld(i)).sum::<DVec3>() / k as f64;
+            let mut grad_m = Vec3::ZERO;
+            for (j, &a) in poly.iter().enumerate() {
+                let b = poly[(j + 1) % k];
+                let (pa, pb) = (rel(a), rel(b));
+                six_v += reld(a).cross(reld(b)).dot(md);
+                self.gradient[a as usize] += pb.cross(m);
+                self.gradient[b as usize] += m.cross(pa);
+                grad_m += pa.cross(pb);
+            }
+            let share = grad_m / k as f32;
+            for &i in poly {
+                self.gradient[i as usize] += share;
+            }
         }
         let mut wg = 0.0f64;
         for (g, &wi) in self.gradient.iter_mut().zip(w) {

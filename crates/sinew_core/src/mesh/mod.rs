@@ -238,8 +238,16 @@ impl SurfaceMesh {
     }
 
     /// Enclosed volume of the (closed, outward-oriented) mesh, accumulated in f64.
+    ///
+    /// Polygons with more than three vertices are fanned about their vertex
+    /// centroid (see [`polygon_volume`]), the same formula the Volume
+    /// constraint uses.
     pub fn volume(&self) -> f64 {
-        signed_volume(&self.triangles, &self.positions)
+        polygon_volume(
+            &self.polygon_offsets,
+            &self.polygon_indices,
+            &self.positions,
+        )
     }
 
     /// Checks that the mesh is closed, edge-manifold and consistently oriented.
@@ -311,6 +319,34 @@ pub fn signed_volume(triangles: &[[u32; 3]], positions: &[Vec3]) -> f64 {
         let pb: DVec3 = positions[b as usize].as_dvec3() - o;
         let pc: DVec3 = positions[c as usize].as_dvec3() - o;
         six_v += pa.cross(pb).dot(pc);
+    }
+    six_v / 6.0
+}
+
+/// Signed volume of a closed polygon mesh (flat polygons as in [`SurfaceMesh`]),
+/// relative to its bounding-box centre, accumulated in f64.
+///
+/// Triangles count as they are; a polygon with more vertices is fanned about
+/// its vertex centroid. Unlike a fan from its first vertex, this is symmetric
+/// in the polygon's vertices: a consistent diagonal choice over a quad mesh is
+/// chiral, and its volume gradient pushes every vertex slightly sideways in
+/// the same rotational sense, which twists a muscle about its axis.
+pub fn polygon_volume(offsets: &[u32], indices: &[u32], positions: &[Vec3]) -> f64 {
+    let (lo, hi) = bounds_of(positions);
+    let o = ((lo + hi) * 0.5).as_dvec3();
+    let rel = |i: u32| positions[i as usize].as_dvec3() - o;
+    let mut six_v = 0.0f64;
+    for w in offsets.windows(2) {
+        let poly = &indices[w[0] as usize..w[1] as usize];
+        if let [a, b, c] = *poly {
+            six_v += rel(a).cross(rel(b)).dot(rel(c));
+            continue;
+        }
+        let centroid = poly.iter().map(|&i| rel(i)).sum::<DVec3>() / poly.len() as f64;
+        for (k, &a) in poly.iter().enumerate() {
+            let b = poly[(k + 1) % poly.len()];
+            six_v += rel(a).cross(rel(b)).dot(centroid);
+        }
     }
     six_v / 6.0
 }

@@ -434,7 +434,8 @@ impl Muscle {
         // Volume.
         if p.volume.enabled && closed {
             c.volume = Some(VolumeConstraint {
-                triangles: self.mesh.triangles.clone(),
+                polygon_offsets: self.mesh.polygon_offsets.clone(),
+                polygon_indices: self.mesh.polygon_indices.clone(),
                 surface_count: n,
                 rest_volume: self.mesh.volume(),
                 ratio: 1.0,
@@ -576,7 +577,12 @@ impl Muscle {
 
     /// Current enclosed volume of the surface (f64).
     pub fn volume(&self) -> f64 {
-        crate::mesh::signed_volume(&self.mesh.triangles, self.surface_positions())
+        let mesh = &self.mesh;
+        crate::mesh::polygon_volume(
+            &mesh.polygon_offsets,
+            &mesh.polygon_indices,
+            self.surface_positions(),
+        )
     }
 
     /// Rest (start-frame) volume.

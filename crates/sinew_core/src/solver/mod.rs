@@ -19,6 +19,7 @@
 //! the thesis' Alg. 3). That makes the order of muscles irrelevant within an
 //! iteration and the result deterministic.
 
+mod momentum;
 mod timings;
 
 pub use timings::StepTimings;
@@ -469,9 +470,11 @@ impl Solver {
             }
             clock.lap(&mut timings.update_targets);
             let damping_exp = 1.0 / substeps as f32;
+            let mut free_momentum = Vec::new();
             for m in &mut self.muscles {
                 integrate(m, gravity, h, damping_exp);
                 m.constraints.clear_lambdas();
+                free_momentum.push(momentum::is_free(m).then(|| momentum::measure(m)));
             }
             clock.lap(&mut timings.integrate);
             for it in 0..iterations {
@@ -487,8 +490,11 @@ impl Solver {
                     clock.lap(&mut timings.project);
                 }
             }
-            for m in &mut self.muscles {
+            for (m, reference) in self.muscles.iter_mut().zip(free_momentum) {
                 apply_predictions(m, h);
+                if let Some(reference) = reference {
+                    momentum::restore(m, reference, h);
+                }
             }
             clock.lap(&mut timings.apply);
         }
