@@ -442,6 +442,7 @@ impl Muscle {
                 compliance: p.compliance.volume,
                 lambda: 0.0,
                 gradient: Vec::with_capacity(n),
+                relative: Vec::with_capacity(n),
             });
         }
     }

@@ -66,6 +66,17 @@ pub struct SolverSettings {
     pub projection_order: Vec<ConstraintKind>,
     /// Measure per-block time. Default: `true`.
     pub timers: bool,
+    /// Every this many frames each vertex runs the full (BVH) closest-point
+    /// search on each target, staggered over vertices; in between, the
+    /// closest point walks over the target from last iteration's triangle
+    /// (see [`crate::target`]). `1` = a full search every frame. Default: `16`.
+    pub full_search_interval: u32,
+    /// Walk over the targets in every iteration. When `false` (default), the
+    /// walk runs in the first iteration of a frame and later iterations
+    /// re-project onto the triangle it found (one triangle test): within a
+    /// frame a contact point slides inside its triangle and reaches the
+    /// neighbours at the next frame.
+    pub walk_every_iteration: bool,
 }
 
 impl Default for SolverSettings {
@@ -80,6 +91,8 @@ impl Default for SolverSettings {
             method: SolverMethod::Sequential,
             projection_order: ConstraintKind::CANONICAL_ORDER.to_vec(),
             timers: true,
+            full_search_interval: 16,
+            walk_every_iteration: false,
         }
     }
 }
@@ -105,6 +118,9 @@ impl SolverSettings {
                 self.space_scale,
                 "must be finite and > 0",
             ));
+        }
+        if self.full_search_interval == 0 {
+            return Err(bad("full_search_interval", 0.0, "must be ≥ 1"));
         }
         if self.iterations == 0 || self.substeps == 0 {
             return Err(bad("iterations/substeps", 0.0, "must be ≥ 1"));
@@ -369,7 +385,7 @@ impl Solver {
         self.published = (0..self.targets.len())
             .filter(|&t| matches!(self.targets[t].source, TargetSource::Muscle(_)))
             .collect();
-        self.publish_muscles();
+        self.publish_muscles(true);
         // Muscle targets follow the bone targets that existed when each was added;
         // find them by source instead of assuming a layout.
         let muscle_target: Vec<usize> = (0..self.muscles.len())
@@ -408,12 +424,19 @@ impl Solver {
     }
 
     /// Copies the predictions of every targeted muscle into its snapshot.
-    fn publish_muscles(&mut self) {
+    /// Publishes the targeted muscles' predictions; `first_iteration` also
+    /// updates their normals and (when the slack asks for it) refits their
+    /// BVHs: that iteration walks and runs the full searches.
+    fn publish_muscles(&mut self, first_iteration: bool) {
         for &ti in &self.published {
             let t = &mut self.targets[ti];
             if let TargetSource::Muscle(m) = t.source {
                 let muscle = &self.muscles[m];
                 t.publish(&muscle.p[..muscle.surface_count]);
+                if first_iteration {
+                    t.update_normals();
+                    t.refit(false);
+                }
             }
         }
     }
@@ -478,13 +501,21 @@ impl Solver {
             }
             clock.lap(&mut timings.integrate);
             for it in 0..iterations {
-                self.publish_muscles();
+                let full_searches = it == 0 && s == 0;
+                self.publish_muscles(full_searches);
                 clock.lap(&mut timings.update_targets);
+                let search = ClosestSchedule {
+                    frame: self.frame,
+                    interval: self.settings.full_search_interval.max(1),
+                    active: full_searches,
+                    walk: full_searches || self.settings.walk_every_iteration,
+                    substep_start: it == 0,
+                };
                 for m in &mut self.muscles {
                     if it >= m.params.iterations.unwrap_or(global_iterations) as usize {
                         continue;
                     }
-                    closest_data(m, &self.targets);
+                    closest_data(m, &self.targets, search);
                     clock.lap(&mut timings.closest_data);
                     project(m, &self.settings.projection_order, inv_h2);
                     clock.lap(&mut timings.project);
@@ -534,9 +565,41 @@ fn apply_predictions(m: &mut Muscle, h: f32) {
     }
 }
 
+/// Which vertices run the full closest-point search in an iteration.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ClosestSchedule {
+    /// Frame counter (staggers the vertices).
+    pub frame: u64,
+    /// Frames between two full searches of one vertex.
+    pub interval: u32,
+    /// The first iteration of a frame: full searches run, and every vertex
+    /// re-chooses its closest target.
+    pub active: bool,
+    /// Walk from the last triangle (else re-project onto it).
+    pub walk: bool,
+    /// The first iteration of a substep: bones have just been posed.
+    pub substep_start: bool,
+}
+
+impl ClosestSchedule {
+    /// Every vertex, every target: the full search.
+    #[cfg(test)]
+    pub const ALWAYS: Self = Self {
+        frame: 0,
+        interval: 1,
+        active: true,
+        walk: true,
+        substep_start: true,
+    };
+
+    fn wants(&self, vertex: usize) -> bool {
+        self.active && (vertex as u64 + self.frame).is_multiple_of(self.interval as u64)
+    }
+}
+
 /// Closest data (BE5): Sliding's closest point on the closest target per
 /// vertex, and the current goals of Soft and Hard on their rest triangles.
-pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface]) {
+pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: ClosestSchedule) {
     let nt = m.target_ids.len();
     if nt == 0 {
         return;
@@ -547,17 +610,34 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface]) {
         let q = m.p[v];
         let mut best: Option<(f32, u32)> = None;
         // Last iteration's target first; every other search is bounded by the
-        // best distance so far (Sliding only needs the closest target).
+        // best distance so far (Sliding only needs the closest target). The
+        // closest target is re-chosen in the first iteration of a frame; later
+        // iterations follow the chosen one only.
         let first = c.sliding.target[i] as usize;
+        let choose = search.active || first >= nt;
         let order = (first < nt)
             .then_some(first)
             .into_iter()
-            .chain((0..nt).filter(|&s| s != first));
+            .chain((0..nt).filter(move |&s| choose && s != first));
+        let full = search.wants(v);
         for slot in order {
             let cell = &mut m.closest[i * nt + slot];
             let warm = cell.map(|h| h.triangle);
-            let bound = best.map_or(f32::MAX, |(d, _)| d);
-            let hit = targets[m.target_ids[slot]].closest_within(q, warm, bound);
+            let target = &targets[m.target_ids[slot]];
+            let local = warm.filter(|_| !full).and_then(|t| {
+                if search.walk {
+                    target.walk(q, t)
+                } else {
+                    target.on_triangle(q, t)
+                }
+            });
+            let hit = match local {
+                Some(hit) => Some(hit),
+                None => {
+                    let bound = best.map_or(f32::MAX, |(d, _)| d);
+                    target.closest_within(q, warm, bound)
+                }
+            };
             if hit.is_some() {
                 *cell = hit;
             }
@@ -577,13 +657,20 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface]) {
             None => c.sliding.target[i] = u32::MAX,
         }
     }
+    // Soft and Hard goals on a rigid target only move with its bone, which
+    // is posed once per substep; a muscle target moves every iteration.
+    let moved = |t: &TargetSurface| search.substep_start || t.is_deforming();
     for (i, a) in c.soft_anchor.iter().enumerate() {
-        c.soft.goal[i] =
-            targets[m.target_ids[a.target as usize]].point_at(a.triangle, a.barycentric);
+        let t = &targets[m.target_ids[a.target as usize]];
+        if moved(t) {
+            c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
+        }
     }
     for (i, a) in c.hard_anchor.iter().enumerate() {
-        let f = targets[m.target_ids[a.target as usize]].frame_at(a.triangle, a.barycentric);
-        c.hard.goal[i] = f.origin + Vec3::from(f.basis * glam::Vec3A::from(a.local));
+        let t = &targets[m.target_ids[a.target as usize]];
+        if moved(t) {
+            c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+        }
     }
 }
 

@@ -17,7 +17,7 @@ fn violated_p1() -> (Solver, Muscle) {
         let k = i as f32;
         *p += 0.004 * Vec3::new((k * 1.3).sin(), (k * 2.1).cos(), (k * 0.7).sin());
     }
-    closest_data(&mut m, &solver.targets);
+    closest_data(&mut m, &solver.targets, ClosestSchedule::ALWAYS);
     (solver, m)
 }
 
@@ -165,7 +165,7 @@ fn gradients_match_central_finite_differences() {
     vol.evaluate(&m.p, &w);
     for i in [0usize, 17, 45, 91] {
         let mut q = m.p.clone();
-        let grad = vol.gradient[i];
+        let grad = Vec3::from(vol.gradient[i]);
         let mut f = |x: Vec3| {
             q[i] = x;
             vol.volume(&q)
@@ -234,7 +234,11 @@ fn volume_gradient_has_no_twist_on_the_quad_oval() {
     let vol = m.constraints.volume.as_mut().unwrap();
     vol.evaluate(&m.p, &w);
     let mut worst: f32 = 0.0;
-    for (x, g) in m.rest.iter().zip(&vol.gradient) {
+    for (x, g) in m
+        .rest
+        .iter()
+        .zip(vol.gradient.iter().map(|&g| Vec3::from(g)))
+    {
         let r = *x - centre;
         let radial = r - r.dot(axis) * axis;
         if radial.length() < 1e-6 {

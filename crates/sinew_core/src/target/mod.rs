@@ -1,0 +1,659 @@
+//! Target surfaces (bones, planes, other muscles) and closest data (SPEC §6).
+//!
+//! A [`TargetSurface`] stores its triangles in a *local* frame with a
+//! [`TriangleBvh`] over them. Rigid targets (bones, planes) never refit: a
+//! query point is moved into the bone's frame instead. Muscle targets are
+//! deforming: their published snapshot rewrites the local positions.
+//!
+//! Two queries answer "closest point":
+//!
+//! - [`TargetSurface::closest_within`], the full search: a nearest-first BVH
+//!   descent ([`TriangleBvh::closest`]) bounded by the distance to last
+//!   iteration's triangle. Exact, ≈ 0.5–1 µs when the query is centimetres
+//!   away.
+//! - [`TargetSurface::walk`], the local search: from last iteration's
+//!   triangle, step to a neighbouring triangle around the closest feature
+//!   (edge or vertex) while that brings the point strictly closer. It stops
+//!   where the closest point is inside a triangle or on a feature no neighbour
+//!   improves — a local minimum of the distance over the surface, which is
+//!   what sliding means: the contact point travels continuously over the
+//!   target instead of jumping across it. Typically one or two triangle tests.
+//!
+//! The solver walks in the first iteration of every frame (in every
+//! iteration with [`crate::solver::SolverSettings::walk_every_iteration`]),
+//! re-projects onto the triangle found in the others
+//! ([`TargetSurface::on_triangle`]), and runs the full search for each vertex
+//! once every [`crate::solver::SolverSettings::full_search_interval`] frames
+//! (staggered over vertices), so a closer region found elsewhere on a target
+//! (or a closer target) is picked up within a few frames.
+//!
+//! A deforming target's BVH is refitted lazily. [`TargetSurface::publish`]
+//! records how far any vertex has moved since the boxes were fitted (the
+//! slack); the full search grows every box by it, so it stays exact, and
+//! [`TargetSurface::refit`] refits only once the slack exceeds a quarter of
+//! the mean edge length.
+
+use glam::{Affine3A, Mat3A, Vec3, Vec3A};
+
+mod bvh;
+
+pub use bvh::TriangleBvh;
+
+/// What a target is attached to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetSource {
+    /// A kinematic bone (index into the solver's bones); rigid.
+    Bone(usize),
+    /// A simulated muscle (index into the solver's muscles); deforming.
+    Muscle(usize),
+}
+
+/// The closest point of a target to a query point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClosestHit {
+    /// Closest point, world.
+    pub point: Vec3,
+    /// Interpolated outward unit normal at the point, world.
+    pub normal: Vec3,
+    /// Barycentric coordinates in the triangle.
+    pub barycentric: Vec3,
+    /// Triangle index.
+    pub triangle: u32,
+    /// Euclidean distance to the query point.
+    pub distance: f32,
+    /// `normal · (query − point)`: negative inside the target.
+    pub signed_distance: f32,
+}
+
+impl ClosestHit {
+    /// Whether the query point lies inside (behind) the surface.
+    pub fn is_inside(&self) -> bool {
+        self.signed_distance < 0.0
+    }
+}
+
+/// Tangent frame `[t̂ b̂ n̂]` at a point of a triangle (SPEC §5.9).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceFrame {
+    /// Point on the surface.
+    pub origin: Vec3,
+    /// Columns: tangent, binormal, normal.
+    pub basis: Mat3A,
+}
+
+/// Triangle geometry of one target, with a BVH.
+#[derive(Clone)]
+pub struct TargetSurface {
+    /// Name (bone or muscle).
+    pub name: String,
+    /// Where the target comes from.
+    pub source: TargetSource,
+    /// Vertex positions in the target's local frame (world for muscles).
+    pub positions: Vec<Vec3>,
+    /// Area-weighted vertex normals, local frame.
+    pub normals: Vec<Vec3>,
+    /// Triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// World from local (identity for muscles).
+    pub transform: Affine3A,
+    inverse: Affine3A,
+    /// `transform` is the identity (muscle targets): skip the transforms.
+    identity: bool,
+    bvh: TriangleBvh,
+    /// Positions the BVH's boxes were fitted to.
+    fitted: Vec<Vec3>,
+    /// How far any vertex has moved since the BVH was fitted: every box,
+    /// grown by this, still bounds its triangle.
+    slack: f32,
+    /// [`TargetSurface::refit`] refits once `slack` exceeds this (a quarter
+    /// of the mean edge length).
+    max_slack: f32,
+    /// CSR offsets of the triangles around each vertex.
+    vertex_triangle_offsets: Vec<u32>,
+    /// CSR entries of the triangles around each vertex.
+    vertex_triangles: Vec<u32>,
+    /// Per triangle, the triangle across edge `(t[k], t[k+1])`, or `u32::MAX`.
+    across_edge: Vec<[u32; 3]>,
+    /// CSR offsets of each vertex's neighbours.
+    neighbor_offsets: Vec<u32>,
+    /// CSR entries of each vertex's neighbours.
+    neighbors: Vec<u32>,
+}
+
+impl std::fmt::Debug for TargetSurface {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TargetSurface")
+            .field("name", &self.name)
+            .field("source", &self.source)
+            .field("vertices", &self.positions.len())
+            .field("triangles", &self.triangles.len())
+            .finish()
+    }
+}
+
+impl TargetSurface {
+    /// Creates a target from local-frame geometry.
+    pub fn new(
+        name: impl Into<String>,
+        source: TargetSource,
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+    ) -> Self {
+        let bvh = TriangleBvh::new(&positions, &triangles);
+        let mut normals = Vec::new();
+        crate::mesh::vertex_normals(&triangles, &positions, &mut normals);
+        let edge_sum: f32 = triangles
+            .iter()
+            .map(|t| {
+                (0..3)
+                    .map(|k| positions[t[k] as usize].distance(positions[t[(k + 1) % 3] as usize]))
+                    .sum::<f32>()
+            })
+            .sum();
+        let max_slack = 0.25 * edge_sum / (3 * triangles.len()).max(1) as f32;
+        let mut vertex_triangle_offsets = vec![0u32; positions.len() + 1];
+        for t in &triangles {
+            for &v in t {
+                vertex_triangle_offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..positions.len() {
+            vertex_triangle_offsets[i + 1] += vertex_triangle_offsets[i];
+        }
+        let mut fill = vertex_triangle_offsets.clone();
+        let mut vertex_triangles = vec![0u32; 3 * triangles.len()];
+        for (ti, t) in triangles.iter().enumerate() {
+            for &v in t {
+                vertex_triangles[fill[v as usize] as usize] = ti as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        let around = |v: u32| {
+            &vertex_triangles[vertex_triangle_offsets[v as usize] as usize
+                ..vertex_triangle_offsets[v as usize + 1] as usize]
+        };
+        let across_edge = triangles
+            .iter()
+            .enumerate()
+            .map(|(ti, t)| {
+                std::array::from_fn(|k| {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    around(a)
+                        .iter()
+                        .copied()
+                        .find(|&n| n as usize != ti && triangles[n as usize].contains(&b))
+                        .unwrap_or(u32::MAX)
+                })
+            })
+            .collect();
+        let mut neighbor_offsets = Vec::with_capacity(positions.len() + 1);
+        let mut neighbors = Vec::new();
+        neighbor_offsets.push(0);
+        for v in 0..positions.len() as u32 {
+            let start = neighbors.len();
+            for &n in around(v) {
+                for &u in &triangles[n as usize] {
+                    if u != v && !neighbors[start..].contains(&u) {
+                        neighbors.push(u);
+                    }
+                }
+            }
+            neighbor_offsets.push(neighbors.len() as u32);
+        }
+        let fitted = positions.clone();
+        Self {
+            name: name.into(),
+            source,
+            positions,
+            normals,
+            triangles,
+            transform: Affine3A::IDENTITY,
+            inverse: Affine3A::IDENTITY,
+            identity: true,
+            bvh,
+            fitted,
+            slack: 0.0,
+            max_slack,
+            vertex_triangle_offsets,
+            vertex_triangles,
+            across_edge,
+            neighbor_offsets,
+            neighbors,
+        }
+    }
+
+    /// Triangles around vertex `v`.
+    #[inline]
+    fn triangles_around(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        &self.vertex_triangles
+            [self.vertex_triangle_offsets[v] as usize..self.vertex_triangle_offsets[v + 1] as usize]
+    }
+
+    /// Sets the world transform of a rigid target.
+    pub fn set_transform(&mut self, transform: Affine3A) {
+        self.transform = transform;
+        self.inverse = transform.inverse();
+        self.identity = transform == Affine3A::IDENTITY;
+    }
+
+    /// Replaces the positions of a deforming target (same topology). This is
+    /// the per-iteration snapshot publish. The BVH keeps its boxes; the
+    /// largest displacement since they were fitted (the slack) makes the full
+    /// search conservative until [`TargetSurface::refit`] refits them. Normals
+    /// keep their values until [`TargetSurface::update_normals`].
+    pub fn publish(&mut self, positions: &[Vec3]) {
+        self.positions.clear();
+        self.positions.extend_from_slice(positions);
+        let moved = self
+            .positions
+            .iter()
+            .zip(&self.fitted)
+            .map(|(p, f)| p.distance_squared(*f))
+            .fold(0.0f32, f32::max);
+        self.slack = moved.sqrt();
+    }
+
+    /// Recomputes the vertex normals from the current positions. The solver
+    /// does it in the first iteration of each frame; within a frame the
+    /// normals of a muscle target lag its positions by a few iterations.
+    pub fn update_normals(&mut self) {
+        crate::mesh::vertex_normals(&self.triangles, &self.positions, &mut self.normals);
+    }
+
+    /// Refits the BVH to the current positions once the slack exceeds a
+    /// quarter of the mean edge length (or always, with `force`).
+    pub fn refit(&mut self, force: bool) {
+        if !force && self.slack <= self.max_slack {
+            return;
+        }
+        self.bvh.refit(&self.positions, &self.triangles);
+        self.fitted.clone_from(&self.positions);
+        self.slack = 0.0;
+    }
+
+    /// Whether the target deforms (a muscle) rather than moving rigidly with
+    /// a bone.
+    #[inline]
+    pub fn is_deforming(&self) -> bool {
+        matches!(self.source, TargetSource::Muscle(_))
+    }
+
+    /// World position of local vertex `i`.
+    #[inline]
+    pub fn world_vertex(&self, i: u32) -> Vec3 {
+        self.transform.transform_point3(self.positions[i as usize])
+    }
+
+    /// Closest point on triangle `t` to a local-frame point: `(point, barycentric)`.
+    #[inline]
+    fn closest_on_triangle(&self, t: u32, q: Vec3) -> (Vec3, Vec3) {
+        let [a, b, c] = self.triangles[t as usize];
+        closest_point_triangle(
+            q,
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        )
+    }
+
+    /// Closest point to `query` (world). `warm` is last iteration's triangle.
+    pub fn closest(&self, query: Vec3, warm: Option<u32>) -> Option<ClosestHit> {
+        self.closest_within(query, warm, f32::MAX)
+    }
+
+    /// Closest point to `query` no farther than `max_distance` (world units;
+    /// rigid transforms keep distances), or `None`. A tight bound prunes most
+    /// of the tree: a muscle choosing its closest target passes the best
+    /// distance found so far on the other targets.
+    pub fn closest_within(
+        &self,
+        query: Vec3,
+        warm: Option<u32>,
+        max_distance: f32,
+    ) -> Option<ClosestHit> {
+        let q = self.inverse.transform_point3(query);
+        let mut best: Option<(f32, u32, Vec3, Vec3)> = None;
+        let mut bound = if max_distance < f32::MAX {
+            max_distance * max_distance
+        } else {
+            f32::MAX
+        };
+        if let Some(t) = warm.filter(|&t| (t as usize) < self.triangles.len()) {
+            let (c, bary) = self.closest_on_triangle(t, q);
+            let d2 = c.distance_squared(q);
+            if d2 <= bound {
+                best = Some((d2, t, c, bary));
+                // A slightly larger bound keeps the warm triangle on ties.
+                bound = d2 * (1.0 + 1e-5) + 1e-20;
+            }
+        }
+        // Boxes grown by the slack still bound their triangles.
+        let found = self.bvh.closest(q, bound, self.slack, |leaf| {
+            let (c, bary) = self.closest_on_triangle(leaf, q);
+            (c.distance_squared(q), (c, bary))
+        });
+        if let Some((leaf, d2, (c, bary))) = found
+            && best.is_none_or(|b| d2 < b.0)
+        {
+            best = Some((d2, leaf, c, bary));
+        }
+        let (d2, triangle, c, bary) = best?;
+        Some(self.hit(query, d2, triangle, c, bary))
+    }
+
+    /// Closest point to `query` on triangle `t` only, or `None` when `t` is
+    /// out of range.
+    pub fn on_triangle(&self, query: Vec3, t: u32) -> Option<ClosestHit> {
+        if t as usize >= self.triangles.len() {
+            return None;
+        }
+        let q = if self.identity {
+            query
+        } else {
+            self.inverse.transform_point3(query)
+        };
+        let (c, bary) = self.closest_on_triangle(t, q);
+        Some(self.hit(query, c.distance_squared(q), t, c, bary))
+    }
+
+    /// Most steps [`TargetSurface::walk`] takes before giving up.
+    pub const MAX_WALK_STEPS: usize = 16;
+
+    /// Local search from triangle `start` (see the module docs): the closest
+    /// point of the local minimum reached, or `None` when `start` is out of
+    /// range or the walk needed more than [`TargetSurface::MAX_WALK_STEPS`]
+    /// steps (the caller then runs the full search).
+    pub fn walk(&self, query: Vec3, start: u32) -> Option<ClosestHit> {
+        if start as usize >= self.triangles.len() {
+            return None;
+        }
+        let q = if self.identity {
+            query
+        } else {
+            self.inverse.transform_point3(query)
+        };
+        let mut t = start;
+        let (mut c, mut bary) = self.closest_on_triangle(t, q);
+        let mut d2 = c.distance_squared(q);
+        for _ in 0..Self::MAX_WALK_STEPS {
+            let tri = self.triangles[t as usize];
+            let next = match (bary.x > 0.0, bary.y > 0.0, bary.z > 0.0) {
+                // Inside the triangle: no neighbour of a smooth surface is closer.
+                (true, true, true) => None,
+                // On an edge: only the triangle across it can be closer.
+                (true, true, false) => self.across(t, 0, q, d2),
+                (false, true, true) => self.across(t, 1, q, d2),
+                (true, false, true) => self.across(t, 2, q, d2),
+                // On a vertex: it is the closest point of every triangle around
+                // it unless the query leans along one of its edges (Ericson's
+                // vertex-region test), so most calls end here without a
+                // triangle test.
+                (true, false, false) => self.around(t, tri[0], q, d2),
+                (false, true, false) => self.around(t, tri[1], q, d2),
+                _ => self.around(t, tri[2], q, d2),
+            };
+            match next {
+                Some((dn, n, cn, bn)) => (d2, t, c, bary) = (dn, n, cn, bn),
+                None => return Some(self.hit(query, d2, t, c, bary)),
+            }
+        }
+        None
+    }
+
+    /// The triangle across edge `k` of `t`, if its closest point is strictly
+    /// closer than `d2`.
+    fn across(&self, t: u32, k: usize, q: Vec3, d2: f32) -> Option<(f32, u32, Vec3, Vec3)> {
+        let n = self.across_edge[t as usize][k];
+        if n == u32::MAX {
+            return None;
+        }
+        let (c, bary) = self.closest_on_triangle(n, q);
+        let dn = c.distance_squared(q);
+        (dn < d2 * (1.0 - 1e-6)).then_some((dn, n, c, bary))
+    }
+
+    /// The closest of the triangles around vertex `v` (other than `t`), if it
+    /// is strictly closer than `d2`. The vertex is the closest point of every
+    /// triangle around it unless the query leans along one of its edges
+    /// (Ericson's vertex-region test), so most calls test no triangle.
+    fn around(&self, t: u32, v: u32, q: Vec3, d2: f32) -> Option<(f32, u32, Vec3, Vec3)> {
+        let pv = self.positions[v as usize];
+        let r = q - pv;
+        let v = v as usize;
+        let neighbors = &self.neighbors
+            [self.neighbor_offsets[v] as usize..self.neighbor_offsets[v + 1] as usize];
+        let mut next: Option<(f32, u32, Vec3, Vec3)> = None;
+        // Only the triangles along a leaning edge (v, u) can hold a closer point.
+        for &u in neighbors {
+            if r.dot(self.positions[u as usize] - pv) <= 0.0 {
+                continue;
+            }
+            for &n in self.triangles_around(v as u32) {
+                if n == t || !self.triangles[n as usize].contains(&u) {
+                    continue;
+                }
+                let (c, bary) = self.closest_on_triangle(n, q);
+                let dn = c.distance_squared(q);
+                if dn < d2 * (1.0 - 1e-6) && next.is_none_or(|b| dn < b.0) {
+                    next = Some((dn, n, c, bary));
+                }
+            }
+        }
+        next
+    }
+
+    /// Builds the world-space hit for a local closest point.
+    fn hit(&self, query: Vec3, d2: f32, triangle: u32, c: Vec3, bary: Vec3) -> ClosestHit {
+        let [a, b, cc] = self.triangles[triangle as usize];
+        let local_n = (self.normals[a as usize] * bary.x
+            + self.normals[b as usize] * bary.y
+            + self.normals[cc as usize] * bary.z)
+            .try_normalize()
+            .unwrap_or(Vec3::Y);
+        let (normal, point) = if self.identity {
+            (local_n, c)
+        } else {
+            (
+                self.transform
+                    .transform_vector3(local_n)
+                    .normalize_or(Vec3::Y),
+                self.transform.transform_point3(c),
+            )
+        };
+        ClosestHit {
+            point,
+            normal,
+            barycentric: bary,
+            triangle,
+            distance: d2.sqrt(),
+            signed_distance: normal.dot(query - point),
+        }
+    }
+
+    /// World point at barycentric `bary` of triangle `t`.
+    #[inline]
+    pub fn point_at(&self, t: u32, bary: Vec3) -> Vec3 {
+        let [a, b, c] = self.triangles[t as usize];
+        let local = self.positions[a as usize] * bary.x
+            + self.positions[b as usize] * bary.y
+            + self.positions[c as usize] * bary.z;
+        self.transform.transform_point3(local)
+    }
+
+    /// Tangent frame at barycentric `bary` of triangle `t` (SPEC §5.9): normal
+    /// interpolated from vertex normals, tangent along the first edge.
+    pub fn frame_at(&self, t: u32, bary: Vec3) -> SurfaceFrame {
+        let (origin, local) = self.local_frame(t, bary);
+        SurfaceFrame {
+            origin: self.transform.transform_point3(origin),
+            basis: self.transform.matrix3 * local,
+        }
+    }
+
+    /// The world point with coordinates `offset` in the tangent frame at
+    /// barycentric `bary` of triangle `t`: the Hard constraint's goal. Same
+    /// as `frame_at(t, bary)` applied to `offset`, with one transform.
+    pub fn point_in_frame(&self, t: u32, bary: Vec3, offset: Vec3) -> Vec3 {
+        let (origin, local) = self.local_frame(t, bary);
+        let p = origin + Vec3::from(local * Vec3A::from(offset));
+        if self.identity {
+            p
+        } else {
+            self.transform.transform_point3(p)
+        }
+    }
+
+    /// Origin and basis `[t̂ b̂ n̂]` of the tangent frame, in the local frame.
+    #[inline]
+    fn local_frame(&self, t: u32, bary: Vec3) -> (Vec3, Mat3A) {
+        let [a, b, c] = self.triangles[t as usize];
+        let (pa, pb, pc) = (
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        );
+        let n = (self.normals[a as usize] * bary.x
+            + self.normals[b as usize] * bary.y
+            + self.normals[c as usize] * bary.z)
+            .try_normalize()
+            .unwrap_or(Vec3::Y);
+        let e = pb - pa;
+        let t_hat = (e - e.dot(n) * n)
+            .try_normalize()
+            .unwrap_or_else(|| n.any_orthonormal_vector());
+        let b_hat = n.cross(t_hat);
+        let origin = pa * bary.x + pb * bary.y + pc * bary.z;
+        (
+            origin,
+            Mat3A::from_cols(t_hat.into(), b_hat.into(), n.into()),
+        )
+    }
+}
+
+/// Closest point on triangle `abc` to `p` and its barycentric coordinates
+/// (Ericson, *Real-Time Collision Detection*, §5.1.5).
+pub fn closest_point_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec3) {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, Vec3::X);
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, Vec3::Y);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + v * ab, Vec3::new(1.0 - v, v, 0.0));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, Vec3::Z);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + w * ac, Vec3::new(1.0 - w, 0.0, w));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + w * (c - b), Vec3::new(0.0, 1.0 - w, w));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    (a + ab * v + ac * w, Vec3::new(1.0 - v - w, v, w))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::primitives::MeshGenerator;
+
+    fn ellipsoid_target() -> TargetSurface {
+        let mesh = MeshGenerator::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::new(0.05, 0.02, 0.025),
+            segments: 16,
+            stacks: 12,
+        }
+        .build("target")
+        .unwrap();
+        TargetSurface::new(
+            "target",
+            TargetSource::Muscle(0),
+            mesh.positions,
+            mesh.triangles,
+        )
+    }
+
+    /// Deterministic pseudo-random unit-ish vectors.
+    fn jitter(i: usize) -> Vec3 {
+        let k = i as f32;
+        Vec3::new((k * 12.9898).sin(), (k * 78.233).sin(), (k * 37.719).sin())
+    }
+
+    fn brute_force(t: &TargetSurface, q: Vec3) -> f32 {
+        (0..t.triangles.len() as u32)
+            .map(|i| t.closest_on_triangle(i, q).0.distance(q))
+            .fold(f32::MAX, f32::min)
+    }
+
+    #[test]
+    fn walk_reaches_the_closest_point_of_a_convex_target() {
+        let t = ellipsoid_target();
+        for i in 0..200 {
+            // A query 2–20 mm outside the surface, started from the triangle
+            // closest to a point a little way around the surface.
+            let dir = jitter(i + 1).normalize();
+            let on_surface = t.closest(dir * 0.06, None).unwrap();
+            let q = on_surface.point + on_surface.normal * (0.002 + 0.018 * (i % 10) as f32 / 9.0);
+            let start = t
+                .closest(q + 0.01 * jitter(i + 1000), None)
+                .unwrap()
+                .triangle;
+            let walked = t.walk(q, start).expect("walk converges");
+            let exact = brute_force(&t, q);
+            assert!(
+                (walked.distance - exact).abs() <= 1e-6 + 1e-4 * exact,
+                "query {i}: walk {} vs exact {exact}",
+                walked.distance
+            );
+        }
+    }
+
+    #[test]
+    fn full_search_stays_exact_on_a_moved_target_before_refit() {
+        let mut t = ellipsoid_target();
+        let moved: Vec<Vec3> = t
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *p * 1.05 + 0.002 * jitter(i) + Vec3::new(0.003, 0.0, 0.0))
+            .collect();
+        t.publish(&moved);
+        assert!(t.slack > 0.0);
+        for i in 0..200 {
+            let q = 0.07 * jitter(i + 7);
+            let hit = t.closest(q, None).unwrap();
+            let exact = brute_force(&t, q);
+            assert!(
+                (hit.distance - exact).abs() <= 1e-6,
+                "query {i}: BVH {} vs exact {exact}",
+                hit.distance
+            );
+        }
+        t.refit(true);
+        assert_eq!(t.slack, 0.0);
+    }
+}
