@@ -29,6 +29,8 @@ struct RunResult {
     constraints: usize,
     /// Global iterations.
     iterations: usize,
+    /// Timer clock reads in the last frame.
+    clock_reads: u32,
 }
 
 /// One run: per-block ms/frame and wall ms/frame.
@@ -62,7 +64,23 @@ fn run_once(
         wall,
         constraints,
         iterations: solver.settings.iterations as usize,
+        clock_reads: solver.timings().clock_reads,
     })
+}
+
+/// Cost of one `Instant::now()` on this machine, in ns (median of 9 batches).
+fn clock_read_ns() -> f64 {
+    const N: u32 = 100_000;
+    let batches = (0..9)
+        .map(|_| {
+            let start = Instant::now();
+            for _ in 0..N {
+                std::hint::black_box(Instant::now());
+            }
+            start.elapsed().as_secs_f64() * 1e9 / N as f64
+        })
+        .collect();
+    median(batches)
 }
 
 /// A bare XPBD distance loop over `n` constraints on a chain: the practical
@@ -115,14 +133,14 @@ pub fn run(
     let mut blocks: Vec<Vec<f64>> = vec![Vec::new(); 7];
     let mut walls = Vec::new();
     let mut untimed = Vec::new();
-    let (mut constraints, mut iters) = (0, 0);
+    let (mut constraints, mut iters, mut reads_per_frame) = (0, 0, 0);
     for _ in 0..runs {
         let r = run_once(scene, frames, iterations, true)?;
         for (k, v) in r.blocks.iter().enumerate() {
             blocks[k].push(*v);
         }
         walls.push(r.wall);
-        (constraints, iters) = (r.constraints, r.iterations);
+        (constraints, iters, reads_per_frame) = (r.constraints, r.iterations, r.clock_reads);
         if timer_overhead {
             untimed.push(run_once(scene, frames, iterations, false)?.wall);
         }
@@ -148,8 +166,13 @@ pub fn run(
     if timer_overhead {
         let off = median(untimed);
         println!(
-            "timers off: {off:.4} ms/frame; timer overhead {:+.2}%",
+            "timers off: {off:.4} ms/frame; timed − untimed {:+.2}% (run-to-run noise included)",
             100.0 * (wall - off) / off
+        );
+        let (reads, ns) = (reads_per_frame, clock_read_ns());
+        println!(
+            "timer cost: {reads} clock reads/frame × {ns:.1} ns = {:.3}% of the frame",
+            100.0 * reads as f64 * ns * 1e-6 / wall
         );
     }
     Ok(ExitCode::SUCCESS)

@@ -1,7 +1,7 @@
 //! Volume constraint with activation-driven gain (SPEC §5.2).
 //!
 //! ```text
-//! V(p)   = 1/6 Σ_(a,b,c) ((p_a − o) × (p_b − o))·(p_c − o)      o = bounding-box centre
+//! V(p)   = 1/6 Σ_(a,b,c) ((p_a − o) × (p_b − o))·(p_c − o)      o = first surface vertex
 //! C      = V(p) − k_p(a) V0                                       (true volume, m³)
 //! ∇_a C  = 1/6 Σ (p_b − o) × (p_c − o)      over triangles with a first in cyclic order
 //! ```
@@ -82,7 +82,7 @@ pub struct VolumeConstraint {
     pub lambda: f32,
     /// Gradient workspace (no allocation in the step).
     pub gradient: Vec<Vec3A>,
-    /// Workspace: surface positions relative to the bounding-box centre.
+    /// Workspace: surface positions relative to the first one.
     pub relative: Vec<Vec3A>,
 }
 
@@ -104,8 +104,9 @@ impl VolumeConstraint {
     /// Fills `self.gradient` with `∇C` and returns `(C, Σ w |∇C|²)`.
     pub fn evaluate(&mut self, p: &[Vec3], w: &[f32]) -> (f64, f64) {
         let surface = &p[..self.surface_count];
-        let (lo, hi) = crate::mesh::bounds_of(surface);
-        let o = Vec3A::from((lo + hi) * 0.5);
+        // Any point on the mesh keeps the relative coordinates as small as
+        // the bounding-box centre would (within 2×) and needs no extra pass.
+        let o = Vec3A::from(surface.first().copied().unwrap_or_default());
         self.relative.clear();
         self.relative
             .extend(surface.iter().map(|&x| Vec3A::from(x) - o));

@@ -532,6 +532,7 @@ impl Solver {
         clock.lap(&mut timings.write_back);
         self.time = end_time;
         self.frame += 1;
+        timings.clock_reads = clock.reads();
         self.timings = timings;
     }
 }
@@ -624,6 +625,9 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
             let cell = &mut m.closest[i * nt + slot];
             let warm = cell.map(|h| h.triangle);
             let target = &targets[m.target_ids[slot]];
+            if best.is_some_and(|(d, _)| target.lower_bound(q) >= d) {
+                continue;
+            }
             let local = warm.filter(|_| !full).and_then(|t| {
                 if search.walk {
                     target.walk(q, t)

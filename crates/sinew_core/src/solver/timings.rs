@@ -19,6 +19,8 @@ pub struct StepTimings {
     pub apply: Duration,
     /// Output normals for rendering / export.
     pub write_back: Duration,
+    /// Clock reads the timers made during the step (0 with timers off).
+    pub clock_reads: u32,
 }
 
 impl StepTimings {
@@ -55,12 +57,14 @@ impl StepTimings {
 /// Chained lap timer: one `Instant::now()` per block boundary, none when off.
 pub(crate) struct Stopwatch {
     last: Option<Instant>,
+    reads: u32,
 }
 
 impl Stopwatch {
     pub(crate) fn new(enabled: bool) -> Self {
         Self {
             last: enabled.then(Instant::now),
+            reads: u32::from(enabled),
         }
     }
 
@@ -71,6 +75,12 @@ impl Stopwatch {
             let now = Instant::now();
             *slot += now - *last;
             *last = now;
+            self.reads += 1;
         }
+    }
+
+    /// Clock reads so far.
+    pub(crate) fn reads(&self) -> u32 {
+        self.reads
     }
 }

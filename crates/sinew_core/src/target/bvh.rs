@@ -130,6 +130,15 @@ impl TriangleBvh {
         }
     }
 
+    /// Distance from `query` to the root box grown by `slack`: a lower bound
+    /// on the distance to every triangle (`f32::MAX` for an empty tree).
+    pub fn lower_bound(&self, query: Vec3, slack: f32) -> f32 {
+        self.nodes.first().map_or(f32::MAX, |n| {
+            let q = Vec3A::from(query);
+            ((n.min - q).max(q - n.max).max(Vec3A::ZERO).length() - slack).max(0.0)
+        })
+    }
+
     /// The triangle minimising `leaf_distance` (a squared distance) among
     /// those whose box, grown by `slack`, is closer than `bound` (squared):
     /// `(triangle, squared distance, payload)`, or `None`.

@@ -342,6 +342,18 @@ impl TargetSurface {
         Some(self.hit(query, d2, triangle, c, bary))
     }
 
+    /// A lower bound on the distance from `query` (world) to this target: the
+    /// distance to its bounding box. Cheap; a muscle choosing its closest
+    /// target skips targets whose bound exceeds the best distance found.
+    pub fn lower_bound(&self, query: Vec3) -> f32 {
+        let q = if self.identity {
+            query
+        } else {
+            self.inverse.transform_point3(query)
+        };
+        self.bvh.lower_bound(q, self.slack)
+    }
+
     /// Closest point to `query` on triangle `t` only, or `None` when `t` is
     /// out of range.
     pub fn on_triangle(&self, query: Vec3, t: u32) -> Option<ClosestHit> {
@@ -416,28 +428,38 @@ impl TargetSurface {
     /// The closest of the triangles around vertex `v` (other than `t`), if it
     /// is strictly closer than `d2`. The vertex is the closest point of every
     /// triangle around it unless the query leans along one of its edges
-    /// (Ericson's vertex-region test), so most calls test no triangle.
+    /// (Ericson's vertex-region test), so most calls test no triangle; else
+    /// the two triangles of the edge it leans along most are tested.
     fn around(&self, t: u32, v: u32, q: Vec3, d2: f32) -> Option<(f32, u32, Vec3, Vec3)> {
         let pv = self.positions[v as usize];
         let r = q - pv;
         let v = v as usize;
         let neighbors = &self.neighbors
             [self.neighbor_offsets[v] as usize..self.neighbor_offsets[v + 1] as usize];
-        let mut next: Option<(f32, u32, Vec3, Vec3)> = None;
-        // Only the triangles along a leaning edge (v, u) can hold a closer point.
+        // Follow the edge the query leans along most (largest cosine): the
+        // closest point moves onto it or into one of its two triangles.
+        let mut lean: Option<(f32, u32)> = None;
         for &u in neighbors {
-            if r.dot(self.positions[u as usize] - pv) <= 0.0 {
+            let e = self.positions[u as usize] - pv;
+            let along = r.dot(e);
+            if along <= 0.0 {
                 continue;
             }
-            for &n in self.triangles_around(v as u32) {
-                if n == t || !self.triangles[n as usize].contains(&u) {
-                    continue;
-                }
-                let (c, bary) = self.closest_on_triangle(n, q);
-                let dn = c.distance_squared(q);
-                if dn < d2 * (1.0 - 1e-6) && next.is_none_or(|b| dn < b.0) {
-                    next = Some((dn, n, c, bary));
-                }
+            let cosine = along * along / e.length_squared();
+            if lean.is_none_or(|(c, _)| cosine > c) {
+                lean = Some((cosine, u));
+            }
+        }
+        let (_, u) = lean?;
+        let mut next: Option<(f32, u32, Vec3, Vec3)> = None;
+        for &n in self.triangles_around(v as u32) {
+            if n == t || !self.triangles[n as usize].contains(&u) {
+                continue;
+            }
+            let (c, bary) = self.closest_on_triangle(n, q);
+            let dn = c.distance_squared(q);
+            if dn < d2 * (1.0 - 1e-6) && next.is_none_or(|b| dn < b.0) {
+                next = Some((dn, n, c, bary));
             }
         }
         next
@@ -507,27 +529,20 @@ impl TargetSurface {
     /// Origin and basis `[t̂ b̂ n̂]` of the tangent frame, in the local frame.
     #[inline]
     fn local_frame(&self, t: u32, bary: Vec3) -> (Vec3, Mat3A) {
-        let [a, b, c] = self.triangles[t as usize];
-        let (pa, pb, pc) = (
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        );
-        let n = (self.normals[a as usize] * bary.x
-            + self.normals[b as usize] * bary.y
-            + self.normals[c as usize] * bary.z)
+        let [a, b, c] = self.triangles[t as usize].map(|i| i as usize);
+        let at = |v: &[Vec3], i: usize| Vec3A::from(v[i]);
+        let (wa, wb, wc) = (bary.x, bary.y, bary.z);
+        let n = (at(&self.normals, a) * wa + at(&self.normals, b) * wb + at(&self.normals, c) * wc)
             .try_normalize()
-            .unwrap_or(Vec3::Y);
+            .unwrap_or(Vec3A::Y);
+        let (pa, pb) = (at(&self.positions, a), at(&self.positions, b));
         let e = pb - pa;
         let t_hat = (e - e.dot(n) * n)
             .try_normalize()
             .unwrap_or_else(|| n.any_orthonormal_vector());
         let b_hat = n.cross(t_hat);
-        let origin = pa * bary.x + pb * bary.y + pc * bary.z;
-        (
-            origin,
-            Mat3A::from_cols(t_hat.into(), b_hat.into(), n.into()),
-        )
+        let origin = pa * wa + pb * wb + at(&self.positions, c) * wc;
+        (origin.into(), Mat3A::from_cols(t_hat, b_hat, n))
     }
 }
 
