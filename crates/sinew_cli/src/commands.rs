@@ -3,6 +3,7 @@
 use sinew_core::constraints::{ConstraintCounts, ConstraintKind};
 use sinew_core::mesh::{LoadOptions, load_mesh};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
+use sinew_core::solver::coloring::ColorGroups;
 use sinew_core::{SceneError, Solver};
 use std::error::Error;
 use std::fmt::Write as _;
@@ -105,6 +106,26 @@ pub fn info(arg: &str) -> Result<ExitCode> {
         );
     }
     println!("\n(links = most surface vertices tied to one internal point)");
+    println!("\nColour groups (greedy first-fit per muscle in projection order; Volume apart):");
+    println!(
+        "{:<12}{:>8}{:>9}{:>9}{:>8}  sizes",
+        "muscle", "groups", "largest", "smallest", "size 1"
+    );
+    for m in solver.muscles() {
+        let colors = ColorGroups::greedy(m, &solver.settings.projection_order);
+        let sizes = colors.sizes();
+        let shown: Vec<String> = sizes.iter().take(16).map(usize::to_string).collect();
+        let more = if sizes.len() > 16 { " …" } else { "" };
+        println!(
+            "{:<12}{:>8}{:>9}{:>9}{:>8}  {}{more}",
+            truncate(&m.name, 11),
+            colors.len(),
+            sizes.iter().max().unwrap_or(&0),
+            sizes.iter().min().unwrap_or(&0),
+            sizes.iter().filter(|&&n| n == 1).count(),
+            shown.join(" ")
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 

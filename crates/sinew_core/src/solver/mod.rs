@@ -19,6 +19,7 @@
 //! the thesis' Alg. 3). That makes the order of muscles irrelevant within an
 //! iteration and the result deterministic.
 
+pub mod coloring;
 mod momentum;
 mod timings;
 
