@@ -29,9 +29,9 @@ use serde::{Deserialize, Serialize};
 pub struct VolumeParams {
     /// Create the constraint. Default: `true`.
     pub enabled: bool,
-    /// Activation-independent gain `G` ([A] "Volume Ratio"). Default: `1.0`.
+    /// Activation-independent gain `G` (AdonisFX "Volume Ratio"). Default: `1.0`.
     pub gain: f32,
-    /// Gain at full activation `R` ([A] "Volume Activation Ratio"). Default: `1.2`.
+    /// Gain at full activation `R` (AdonisFX "Volume Activation Ratio"). Default: `1.2`.
     pub activation_gain: f32,
     /// For an open mesh: drop the Volume constraint with a warning instead of
     /// failing. Default: `false`.
