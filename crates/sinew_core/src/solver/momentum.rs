@@ -51,7 +51,11 @@ impl RigidMomentum {
 
 /// Momentum of `m` from its current positions `x` and velocities `v`.
 pub(crate) fn measure(m: &Muscle) -> RigidMomentum {
-    let (_, c) = centre_of_mass(m);
+    measure_about(m, centre_of_mass(m).1)
+}
+
+/// Momentum of `m`, the angular part about `c` (its centre of mass).
+fn measure_about(m: &Muscle, c: Vec3) -> RigidMomentum {
     let mut linear = Vec3::ZERO;
     let mut angular = Vec3::ZERO;
     for ((x, v), &w) in m.x.iter().zip(&m.v).zip(&m.w) {
@@ -74,8 +78,8 @@ pub(crate) fn restore(m: &mut Muscle, reference: RigidMomentum, h: f32) {
 }
 
 fn restore_once(m: &mut Muscle, reference: RigidMomentum, h: f32) {
-    let now = measure(m);
     let (mass, c) = centre_of_mass(m);
+    let now = measure_about(m, c);
     let mut inertia = Mat3::ZERO;
     for (x, &w) in m.x.iter().zip(&m.w) {
         let r = *x - c;

@@ -168,10 +168,7 @@ impl TargetSurface {
                 fill[v as usize] += 1;
             }
         }
-        let around = |v: u32| {
-            &vertex_triangles[vertex_triangle_offsets[v as usize] as usize
-                ..vertex_triangle_offsets[v as usize + 1] as usize]
-        };
+        let around = |v: u32| csr_row(&vertex_triangle_offsets, &vertex_triangles, v);
         let across_edge = triangles
             .iter()
             .enumerate()
@@ -225,9 +222,17 @@ impl TargetSurface {
     /// Triangles around vertex `v`.
     #[inline]
     fn triangles_around(&self, v: u32) -> &[u32] {
-        let v = v as usize;
-        &self.vertex_triangles
-            [self.vertex_triangle_offsets[v] as usize..self.vertex_triangle_offsets[v + 1] as usize]
+        csr_row(&self.vertex_triangle_offsets, &self.vertex_triangles, v)
+    }
+
+    /// A world point in the target's local frame.
+    #[inline]
+    fn to_local(&self, query: Vec3) -> Vec3 {
+        if self.identity {
+            query
+        } else {
+            self.inverse.transform_point3(query)
+        }
     }
 
     /// Sets the world transform of a rigid target.
@@ -312,7 +317,7 @@ impl TargetSurface {
         warm: Option<u32>,
         max_distance: f32,
     ) -> Option<ClosestHit> {
-        let q = self.inverse.transform_point3(query);
+        let q = self.to_local(query);
         let mut best: Option<(f32, u32, Vec3, Vec3)> = None;
         let mut bound = if max_distance < f32::MAX {
             max_distance * max_distance
@@ -346,11 +351,7 @@ impl TargetSurface {
     /// distance to its bounding box. Cheap; a muscle choosing its closest
     /// target skips targets whose bound exceeds the best distance found.
     pub fn lower_bound(&self, query: Vec3) -> f32 {
-        let q = if self.identity {
-            query
-        } else {
-            self.inverse.transform_point3(query)
-        };
+        let q = self.to_local(query);
         self.bvh.lower_bound(q, self.slack)
     }
 
@@ -360,11 +361,7 @@ impl TargetSurface {
         if t as usize >= self.triangles.len() {
             return None;
         }
-        let q = if self.identity {
-            query
-        } else {
-            self.inverse.transform_point3(query)
-        };
+        let q = self.to_local(query);
         let (c, bary) = self.closest_on_triangle(t, q);
         Some(self.hit(query, c.distance_squared(q), t, c, bary))
     }
@@ -380,11 +377,7 @@ impl TargetSurface {
         if start as usize >= self.triangles.len() {
             return None;
         }
-        let q = if self.identity {
-            query
-        } else {
-            self.inverse.transform_point3(query)
-        };
+        let q = self.to_local(query);
         let mut t = start;
         let (mut c, mut bary) = self.closest_on_triangle(t, q);
         let mut d2 = c.distance_squared(q);
@@ -433,9 +426,7 @@ impl TargetSurface {
     fn around(&self, t: u32, v: u32, q: Vec3, d2: f32) -> Option<(f32, u32, Vec3, Vec3)> {
         let pv = self.positions[v as usize];
         let r = q - pv;
-        let v = v as usize;
-        let neighbors = &self.neighbors
-            [self.neighbor_offsets[v] as usize..self.neighbor_offsets[v + 1] as usize];
+        let neighbors = csr_row(&self.neighbor_offsets, &self.neighbors, v);
         // Follow the edge the query leans along most (largest cosine): the
         // closest point moves onto it or into one of its two triangles.
         let mut lean: Option<(f32, u32)> = None;
@@ -452,7 +443,7 @@ impl TargetSurface {
         }
         let (_, u) = lean?;
         let mut next: Option<(f32, u32, Vec3, Vec3)> = None;
-        for &n in self.triangles_around(v as u32) {
+        for &n in self.triangles_around(v) {
             if n == t || !self.triangles[n as usize].contains(&u) {
                 continue;
             }
@@ -544,6 +535,13 @@ impl TargetSurface {
         let origin = pa * wa + pb * wb + at(&self.positions, c) * wc;
         (origin.into(), Mat3A::from_cols(t_hat, b_hat, n))
     }
+}
+
+/// Row `i` of a compressed sparse row table.
+#[inline]
+fn csr_row<'a>(offsets: &[u32], entries: &'a [u32], i: u32) -> &'a [u32] {
+    let i = i as usize;
+    &entries[offsets[i] as usize..offsets[i + 1] as usize]
 }
 
 /// Closest point on triangle `abc` to `p` and its barycentric coordinates
