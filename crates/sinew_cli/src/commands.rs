@@ -72,28 +72,34 @@ fn truncate(s: &str, n: usize) -> String {
 
 pub fn info(arg: &str) -> Result<ExitCode> {
     let (scene, solver) = load_solver(arg)?;
-    println!("scene {}: {}", scene.name, scene.description);
-    println!(
+    // Built whole and written once, so a reader that stops early (`| head`,
+    // `grep -q`) ends the output instead of a panicking `println!`.
+    let mut out = String::new();
+    writeln!(out, "scene {}: {}", scene.name, scene.description)?;
+    writeln!(
+        out,
         "{} bones, {} muscles, {} iterations, {} substeps, dt {:.5} s\n",
         solver.bones().len(),
         solver.muscles().len(),
         solver.settings.iterations,
         solver.settings.substeps,
         solver.settings.dt
-    );
-    print!("{}", constraint_table(&solver));
-    println!();
-    println!(
+    )?;
+    out.push_str(&constraint_table(&solver));
+    writeln!(out)?;
+    writeln!(
+        out,
         "{:<12}{:>9}{:>9}{:>8}{:>9}{:>9}{:>7}{:>13}",
         "muscle", "vertices", "internal", "branch", "bifurc.", "roots", "links", "volume (cm³)"
-    );
+    )?;
     for m in solver.muscles() {
         let s = &m.structure;
         let max_links = (0..s.points.len())
             .map(|p| s.vertex_point.iter().filter(|&&q| q as usize == p).count())
             .max()
             .unwrap_or(0);
-        println!(
+        writeln!(
+            out,
             "{:<12}{:>9}{:>9}{:>8}{:>9}{:>9}{:>7}{:>13.2}",
             truncate(&m.name, 11),
             m.surface_count,
@@ -103,20 +109,28 @@ pub fn info(arg: &str) -> Result<ExitCode> {
             m.roots.len(),
             max_links,
             m.rest_volume() * 1e6
-        );
+        )?;
     }
-    println!("\n(links = most surface vertices tied to one internal point)");
-    println!("\nColour groups (greedy first-fit per muscle in projection order; Volume apart):");
-    println!(
+    writeln!(
+        out,
+        "\n(links = most surface vertices tied to one internal point)"
+    )?;
+    writeln!(
+        out,
+        "\nColour groups (greedy first-fit per muscle in projection order; Volume apart):"
+    )?;
+    writeln!(
+        out,
         "{:<12}{:>8}{:>9}{:>9}{:>8}  sizes",
         "muscle", "groups", "largest", "smallest", "size 1"
-    );
+    )?;
     for m in solver.muscles() {
         let colors = ColorGroups::greedy(m, &solver.settings.projection_order);
         let sizes = colors.sizes();
         let shown: Vec<String> = sizes.iter().take(16).map(usize::to_string).collect();
         let more = if sizes.len() > 16 { " …" } else { "" };
-        println!(
+        writeln!(
+            out,
             "{:<12}{:>8}{:>9}{:>9}{:>8}  {}{more}",
             truncate(&m.name, 11),
             colors.len(),
@@ -124,9 +138,19 @@ pub fn info(arg: &str) -> Result<ExitCode> {
             sizes.iter().min().unwrap_or(&0),
             sizes.iter().filter(|&&n| n == 1).count(),
             shown.join(" ")
-        );
+        )?;
     }
+    write_stdout(&out)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Writes `text` to standard output; a closed pipe is not an error.
+fn write_stdout(text: &str) -> std::io::Result<()> {
+    use std::io::Write as _;
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => other,
+    }
 }
 
 pub fn validate(arg: &str) -> Result<ExitCode> {
