@@ -45,6 +45,8 @@ pub mod error;
 pub mod mesh;
 pub mod muscle;
 pub mod scene;
+pub mod sensor;
+pub mod skeleton;
 pub mod solver;
 pub mod target;
 

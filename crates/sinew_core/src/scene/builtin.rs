@@ -76,6 +76,7 @@ fn p1() -> Scene {
         settings: profiling_settings(),
         bones: vec![ground(-0.04, 0.4)],
         muscles: vec![m],
+        ..Default::default()
     }
 }
 
@@ -120,6 +121,7 @@ fn p2() -> Scene {
         settings: profiling_settings(),
         bones: vec![ground(-0.04, 0.5)],
         muscles: vec![a, b],
+        ..Default::default()
     }
 }
 
@@ -147,6 +149,7 @@ fn t1() -> Scene {
         },
         bones: Vec::new(),
         muscles: vec![m],
+        ..Default::default()
     }
 }
 
@@ -198,5 +201,6 @@ fn p3() -> Scene {
         settings: profiling_settings(),
         bones: vec![ground(-0.075, 0.6)],
         muscles: vec![biceps, brachialis],
+        ..Default::default()
     }
 }

@@ -32,6 +32,8 @@ use crate::error::SceneError;
 use crate::mesh::primitives::MeshGenerator;
 use crate::mesh::{LoadOptions, SurfaceMesh, load_mesh};
 use crate::muscle::{AttachmentDesc, MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
+use crate::sensor::{ActivationLayer, ActivationRig, SensorSpec};
+use crate::skeleton::Skeleton;
 use crate::solver::{Solver, SolverSettings};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -53,6 +55,10 @@ pub struct Scene {
     pub bones: Vec<BoneSpec>,
     /// Muscles.
     pub muscles: Vec<MuscleSpec>,
+    /// Joint hierarchy and its keyframed motion; bones with a `body` follow it.
+    pub skeleton: Option<Skeleton>,
+    /// Sensors reading bone frames, for muscles' activation layers.
+    pub sensors: Vec<SensorSpec>,
 }
 
 /// A bone: its shape (optional; needed to be a target) and its animation.
@@ -65,6 +71,8 @@ pub struct BoneSpec {
     pub shape: Option<BoneShape>,
     /// Keyframed pose; empty = identity (static).
     pub track: TransformTrack,
+    /// Skeleton body this bone follows (replaces `track`).
+    pub body: Option<String>,
 }
 
 /// Geometry of a bone.
@@ -149,6 +157,8 @@ pub struct MuscleSpec {
     pub params: MuscleParams,
     /// Activation over time; `None` keeps `params.activation`.
     pub activation: Option<Curve>,
+    /// Activation from sensors (replaces `activation` when not empty).
+    pub drive: Vec<ActivationLayer>,
     /// Per-vertex maps.
     pub maps: VertexMaps,
 }
@@ -218,8 +228,21 @@ impl Scene {
         self.check_names()?;
         let (bone_meshes, muscle_meshes) = self.load_meshes(base_dir)?;
         let mut solver = Solver::new(self.settings.clone())?;
+        let rig = self.skeleton.as_ref().map(Skeleton::compile).transpose()?;
+        if let Some(rig) = &rig {
+            solver.set_skeleton(rig.clone());
+        }
         for (b, mesh) in self.bones.iter().zip(&bone_meshes) {
-            solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref());
+            let index = solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref());
+            if let Some(body) = &b.body {
+                let found = rig.as_ref().and_then(|r| r.body_index(body));
+                let body = found.ok_or_else(|| SceneError::UnknownReference {
+                    context: format!("bone '{}'", b.name),
+                    kind: "skeleton body",
+                    name: body.clone(),
+                })?;
+                solver.bind_bone(index, body)?;
+            }
         }
         let bone_index = |context: String, name: &str| {
             solver.bone_index(name).ok_or(SceneError::UnknownReference {
@@ -275,6 +298,15 @@ impl Scene {
         }
         for (m, o) in deferred {
             solver.add_target(m, TargetRef::Muscle(o))?;
+        }
+        if !self.sensors.is_empty() || self.muscles.iter().any(|m| !m.drive.is_empty()) {
+            let mut rig = ActivationRig::new(&self.sensors, &|n| solver.bone_index(n))?;
+            for (mi, m) in self.muscles.iter().enumerate() {
+                if !m.drive.is_empty() {
+                    rig.add_stack(mi, &m.name, &m.drive)?;
+                }
+            }
+            solver.set_activation_rig(rig);
         }
         solver.prepare();
         Ok(solver)

@@ -31,6 +31,8 @@ use crate::constraints::ConstraintKind;
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use crate::muscle::{Muscle, MuscleDesc, SurfaceAnchor, TargetRef};
+use crate::sensor::ActivationRig;
+use crate::skeleton::SkeletonRig;
 use crate::target::{TargetSource, TargetSurface};
 use glam::{Affine3A, Vec3};
 use serde::{Deserialize, Serialize};
@@ -147,6 +149,22 @@ pub struct Bone {
     pub previous: Affine3A,
     /// Target surface index, if the bone has a mesh.
     pub target: Option<usize>,
+    /// Skeleton body whose world frame this bone follows (see [`Solver::set_skeleton`]).
+    pub body: Option<usize>,
+}
+
+/// The solver's skeleton and its scratch buffers.
+#[derive(Debug)]
+struct SkeletonState {
+    rig: SkeletonRig,
+    values: Vec<f32>,
+    world: Vec<Affine3A>,
+}
+
+impl SkeletonState {
+    fn pose_at(&mut self, time: f32) {
+        self.rig.pose_at(time, &mut self.values, &mut self.world);
+    }
 }
 
 /// The MSXPBD solver: bones, muscles, targets and the frame loop.
@@ -165,6 +183,10 @@ pub struct Solver {
     frame: u64,
     timings: StepTimings,
     warnings: Vec<String>,
+    skeleton: Option<SkeletonState>,
+    activation_rig: Option<ActivationRig>,
+    /// Bone poses at the current substep.
+    substep_poses: Vec<Affine3A>,
 }
 
 impl Solver {
@@ -183,6 +205,9 @@ impl Solver {
             frame: 0,
             timings: StepTimings::default(),
             warnings: Vec::new(),
+            skeleton: None,
+            activation_rig: None,
+            substep_poses: Vec::new(),
         })
     }
 
@@ -214,8 +239,69 @@ impl Solver {
             transform: pose,
             previous: pose,
             target,
+            body: None,
         });
         index
+    }
+
+    /// Poses bones from a skeleton from now on: bones bound with
+    /// [`Solver::bind_bone`] follow their body's world frame, evaluated at the
+    /// end of every frame and at every substep.
+    pub fn set_skeleton(&mut self, rig: SkeletonRig) {
+        let mut state = SkeletonState {
+            rig,
+            values: Vec::new(),
+            world: Vec::new(),
+        };
+        state.pose_at(self.time);
+        self.skeleton = Some(state);
+    }
+
+    /// The skeleton, if one was set.
+    pub fn skeleton(&self) -> Option<&SkeletonRig> {
+        self.skeleton.as_ref().map(|s| &s.rig)
+    }
+
+    /// Makes `bone` follow skeleton body `body` (its pose is taken now, so bind
+    /// bones before adding the muscles attached to them).
+    pub fn bind_bone(&mut self, bone: usize, body: usize) -> Result<(), BuildError> {
+        let state = self
+            .skeleton
+            .as_ref()
+            .ok_or_else(|| BuildError::InvalidParameter {
+                muscle: self.bones[bone].name.clone(),
+                parameter: "body".into(),
+                value: body as f32,
+                reason: "the solver has no skeleton".into(),
+            })?;
+        let pose = *state
+            .world
+            .get(body)
+            .ok_or_else(|| BuildError::InvalidParameter {
+                muscle: self.bones[bone].name.clone(),
+                parameter: "body".into(),
+                value: body as f32,
+                reason: format!("the skeleton has {} bodies", state.world.len()),
+            })?;
+        let b = &mut self.bones[bone];
+        b.body = Some(body);
+        b.transform = pose;
+        b.previous = pose;
+        if let Some(t) = b.target {
+            self.targets[t].set_transform(pose);
+        }
+        Ok(())
+    }
+
+    /// Drives muscle activations from sensors from now on (replacing
+    /// curves and [`Solver::set_activation`] for the muscles it drives).
+    pub fn set_activation_rig(&mut self, rig: ActivationRig) {
+        self.activation_rig = Some(rig);
+    }
+
+    /// The sensor rig, if one was set.
+    pub fn activation_rig(&self) -> Option<&ActivationRig> {
+        self.activation_rig.as_ref()
     }
 
     /// Builds and adds a muscle. Bone targets must exist; muscle targets must
@@ -442,6 +528,24 @@ impl Solver {
         }
     }
 
+    /// Fills `substep_poses` with every bone's pose at fraction `alpha` of the
+    /// frame (time `time`): skeleton bones from the skeleton itself, others
+    /// interpolated rigidly between the frame's start and end poses.
+    fn pose_bones_at(&mut self, alpha: f32, time: f32) {
+        if alpha < 1.0
+            && let Some(sk) = &mut self.skeleton
+        {
+            sk.pose_at(time);
+        }
+        let sk = self.skeleton.as_ref();
+        self.substep_poses.clear();
+        self.substep_poses
+            .extend(self.bones.iter().map(|b| match (b.body, sk) {
+                (Some(body), Some(sk)) if alpha < 1.0 => sk.world[body],
+                _ => interpolate_rigid(b.previous, b.transform, alpha),
+            }));
+    }
+
     /// Advances one frame.
     pub fn step(&mut self) {
         let mut timings = StepTimings::default();
@@ -449,9 +553,14 @@ impl Solver {
         // Read inputs.
         let dt = self.settings.dt * self.settings.time_scale;
         let end_time = self.time + dt;
+        if let Some(sk) = &mut self.skeleton {
+            sk.pose_at(end_time);
+        }
         for b in &mut self.bones {
             b.previous = b.transform;
-            if !b.track.keys.is_empty() {
+            if let (Some(body), Some(sk)) = (b.body, &self.skeleton) {
+                b.transform = sk.world[body];
+            } else if !b.track.keys.is_empty() {
                 b.transform = b.track.sample(end_time);
             }
         }
@@ -459,6 +568,17 @@ impl Solver {
             if let Some(c) = curve {
                 m.params.activation = c.sample(end_time);
             }
+        }
+        if let Some(rig) = &mut self.activation_rig {
+            let poses: Vec<Affine3A> = self.bones.iter().map(|b| b.transform).collect();
+            let muscles = &mut self.muscles;
+            rig.update(&poses, end_time, dt, |m, a| {
+                if let Some(m) = muscles.get_mut(m) {
+                    m.params.activation = a;
+                }
+            });
+        }
+        for m in &mut self.muscles {
             if let Some(w) = m.update_activation() {
                 self.warnings.push(w);
             }
@@ -474,21 +594,14 @@ impl Solver {
         for s in 0..substeps {
             // Bones and attachment goals at the substep's end time.
             let alpha = (s + 1) as f32 / substeps as f32;
-            for b in &self.bones {
+            self.pose_bones_at(alpha, self.time + alpha * dt);
+            for (b, pose) in self.bones.iter().zip(&self.substep_poses) {
                 if let Some(t) = b.target {
-                    self.targets[t].set_transform(interpolate_rigid(
-                        b.previous,
-                        b.transform,
-                        alpha,
-                    ));
+                    self.targets[t].set_transform(*pose);
                 }
             }
-            let bones = &self.bones;
-            let pose = |b: Option<usize>| {
-                b.map_or(Affine3A::IDENTITY, |b| {
-                    interpolate_rigid(bones[b].previous, bones[b].transform, alpha)
-                })
-            };
+            let poses = &self.substep_poses;
+            let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
             for m in &mut self.muscles {
                 update_attachment_goals(m, &pose);
             }
