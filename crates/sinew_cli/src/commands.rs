@@ -145,7 +145,7 @@ pub fn info(arg: &str) -> Result<ExitCode> {
 }
 
 /// Writes `text` to standard output; a closed pipe is not an error.
-fn write_stdout(text: &str) -> std::io::Result<()> {
+pub fn write_stdout(text: &str) -> std::io::Result<()> {
     use std::io::Write as _;
     match std::io::stdout().lock().write_all(text.as_bytes()) {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),

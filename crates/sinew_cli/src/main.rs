@@ -1,7 +1,9 @@
 //! `sinew`: headless tools for MSXPBD scenes — info, validate, bake, bench.
 
 mod bench;
+mod check;
 mod commands;
+mod import;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -56,6 +58,45 @@ enum Command {
         #[arg(long)]
         timer_overhead: bool,
     },
+    /// Import a MuJoCo MJCF model (or run an import recipe `.ron`): bones,
+    /// joints and one swept muscle per tendon actuator, as a scene.
+    ImportMjcf {
+        /// MJCF model (.xml) or import recipe (.ron).
+        input: PathBuf,
+        /// Attach another model at a site of this one: FILE@SITE (repeatable).
+        #[arg(long)]
+        attach: Vec<String>,
+        /// Attach a mirrored (right → left) copy: FILE@SITE (repeatable).
+        #[arg(long)]
+        attach_mirrored: Vec<String>,
+        /// Muscles (actuator names) to import, comma separated; default all.
+        #[arg(long, value_delimiter = ',')]
+        muscles: Vec<String>,
+        /// Approximate vertex count per muscle.
+        #[arg(long)]
+        resolution: Option<u32>,
+        /// Belly radius of every muscle (m) instead of the one from its force.
+        #[arg(long)]
+        radius: Option<f32>,
+        /// Output scene file (meshes go to `<stem>_meshes/` beside it).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Simulate and report finiteness, attachment error, muscle–bone
+    /// penetration, volume range, peak activation and belly cross-section.
+    Check {
+        /// Scene file or built-in name.
+        scene: String,
+        /// Frames to simulate (default: the scene's).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Check penetration every N frames.
+        #[arg(long, default_value_t = 1)]
+        every: u32,
+        /// Penetration depth counted, in millimetres.
+        #[arg(long, default_value_t = 2.0)]
+        depth_mm: f32,
+    },
     /// Write a built-in scene as RON.
     Scene {
         /// Built-in name.
@@ -80,6 +121,31 @@ fn main() -> ExitCode {
             timer_overhead,
         } => bench::run(&scene, frames, runs, iterations, timer_overhead),
         Command::Scene { name, out } => commands::write_builtin(&name, &out),
+        Command::Check {
+            scene,
+            frames,
+            every,
+            depth_mm,
+        } => check::run(&scene, frames, every, depth_mm),
+        Command::ImportMjcf {
+            input,
+            attach,
+            attach_mirrored,
+            muscles,
+            resolution,
+            radius,
+            out,
+        } => import::run(
+            &input,
+            &import::ImportArgs {
+                attach,
+                attach_mirrored,
+                muscles,
+                resolution,
+                radius,
+                out,
+            },
+        ),
     };
     match result {
         Ok(code) => code,

@@ -225,3 +225,66 @@ pub enum SceneError {
     #[error(transparent)]
     Mesh(#[from] MeshError),
 }
+
+/// An MJCF model could not be imported, or a muscle could not be built from
+/// its path.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    /// A file could not be read or written.
+    #[error("{file}: {source}")]
+    Io {
+        /// Offending file.
+        file: PathBuf,
+        /// Underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Malformed XML.
+    #[error("{file}:{line}:{column}: malformed XML: {reason}")]
+    Xml {
+        /// Offending file.
+        file: PathBuf,
+        /// 1-based line.
+        line: u32,
+        /// 1-based column.
+        column: u32,
+        /// Parser message.
+        reason: String,
+    },
+    /// An element is valid XML but not a model sinew can use.
+    #[error("{file}:{line}: <{element}>: {reason}")]
+    Model {
+        /// Offending file.
+        file: PathBuf,
+        /// 1-based line.
+        line: u32,
+        /// Element name.
+        element: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A muscle's path cannot make a muscle.
+    #[error("muscle '{muscle}': {reason}")]
+    Path {
+        /// Muscle (actuator or tendon) name.
+        muscle: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A name asked for on the command line or in a recipe does not exist.
+    #[error("{context}: unknown {kind} '{name}'")]
+    UnknownName {
+        /// Where it was asked for.
+        context: String,
+        /// "muscle", "site", "body" …
+        kind: &'static str,
+        /// The missing name.
+        name: String,
+    },
+    /// A mesh could not be loaded or built.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// The produced scene is invalid.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+}

@@ -39,9 +39,11 @@
 //!   muscle aligned with an axis. See [`constraints::FiberMode`].
 //! - *Units?* SI: metres, seconds, kilograms. Compliance is `1/k` in m/N.
 
+pub mod analysis;
 pub mod animation;
 pub mod constraints;
 pub mod error;
+pub mod import;
 pub mod mesh;
 pub mod muscle;
 pub mod scene;
@@ -50,6 +52,6 @@ pub mod skeleton;
 pub mod solver;
 pub mod target;
 
-pub use error::{BuildError, MeshError, SceneError};
+pub use error::{BuildError, ImportError, MeshError, SceneError};
 pub use glam;
 pub use solver::{Solver, SolverMethod, SolverSettings, StepTimings};

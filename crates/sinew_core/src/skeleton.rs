@@ -96,7 +96,6 @@ struct RigJoint {
     kind: JointKind,
     anchor: Vec3,
     axis: Vec3,
-    range: Option<(f32, f32)>,
     /// Index of the first value in the value vector.
     offset: usize,
 }
@@ -117,8 +116,8 @@ pub struct SkeletonRig {
     /// Value offset of each joint by name index.
     joint_offsets: Vec<(usize, JointKind)>,
     value_count: usize,
-    /// `(value index, curve)`.
-    motion: Vec<(usize, Curve)>,
+    /// `(value index, curve, range)`.
+    motion: Vec<(usize, Curve, Option<(f32, f32)>)>,
 }
 
 impl Skeleton {
@@ -184,7 +183,6 @@ impl Skeleton {
                     kind: j.kind,
                     anchor: j.anchor,
                     axis,
-                    range: j.range,
                     offset: value_count,
                 });
                 value_count += j.kind.dofs();
@@ -224,7 +222,13 @@ impl Skeleton {
             {
                 return Err(invalid(context(), "non-finite key".into()));
             }
-            motion.push((offset + m.component as usize, m.curve.clone()));
+            let range = self
+                .bodies
+                .iter()
+                .flat_map(|b| &b.joints)
+                .nth(j)
+                .and_then(|j| j.range);
+            motion.push((offset + m.component as usize, m.curve.clone(), range));
         }
         Ok(SkeletonRig {
             names,
@@ -265,17 +269,19 @@ impl SkeletonRig {
             .map(|&j| self.joint_offsets[j].0)
     }
 
-    /// Joint values at `time` from the keyframed motion (0 where none).
+    /// Joint values at `time` from the keyframed motion, clamped to each
+    /// joint's range (0 for joints without motion, as in the model's
+    /// reference pose).
     pub fn values_at(&self, time: f32, values: &mut Vec<f32>) {
         values.clear();
         values.resize(self.value_count, 0.0);
-        for (i, curve) in &self.motion {
-            values[*i] = curve.sample(time);
+        for (i, curve, range) in &self.motion {
+            let v = curve.sample(time);
+            values[*i] = range.map_or(v, |(lo, hi)| v.clamp(lo, hi));
         }
     }
 
-    /// World transforms of every body for the given joint values. Values
-    /// outside a joint's range are clamped to it.
+    /// World transforms of every body for the given joint values.
     pub fn pose(&self, values: &[f32], world: &mut Vec<Affine3A>) {
         world.clear();
         for b in &self.bodies {
@@ -284,17 +290,13 @@ impl SkeletonRig {
                 None => b.local,
             };
             for j in &b.joints {
-                let clamp = |v: f32| match j.range {
-                    Some((lo, hi)) => v.clamp(lo, hi),
-                    None => v,
-                };
                 let motion = match j.kind {
                     JointKind::Hinge => {
-                        let q = clamp(values.get(j.offset).copied().unwrap_or(0.0));
+                        let q = values.get(j.offset).copied().unwrap_or(0.0);
                         about(j.anchor, Quat::from_axis_angle(j.axis, q))
                     }
                     JointKind::Slide => {
-                        let q = clamp(values.get(j.offset).copied().unwrap_or(0.0));
+                        let q = values.get(j.offset).copied().unwrap_or(0.0);
                         Affine3A::from_translation(j.axis * q)
                     }
                     JointKind::Ball => {
@@ -389,13 +391,13 @@ mod tests {
     }
 
     #[test]
-    fn values_are_clamped_to_the_range() {
-        let rig = arm().compile().unwrap();
-        let mut world = Vec::new();
-        rig.pose(&[10.0], &mut world);
-        let mut limit = Vec::new();
-        rig.pose(&[2.5], &mut limit);
-        assert!(world[1].abs_diff_eq(limit[1], 1e-6));
+    fn keyframed_values_are_clamped_to_the_range() {
+        let mut s = arm();
+        s.motion[0].curve.keys[1].1 = 10.0;
+        let rig = s.compile().unwrap();
+        let mut values = Vec::new();
+        rig.values_at(1.0, &mut values);
+        assert_eq!(values, vec![2.5]);
     }
 
     #[test]

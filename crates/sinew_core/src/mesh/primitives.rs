@@ -155,7 +155,7 @@ impl MeshGenerator {
 }
 
 /// Flips every polygon when the signed volume is negative.
-fn oriented_outward(positions: &[Vec3], mut polygons: Vec<Vec<u32>>) -> Vec<Vec<u32>> {
+pub(crate) fn oriented_outward(positions: &[Vec3], mut polygons: Vec<Vec<u32>>) -> Vec<Vec<u32>> {
     let tris: Vec<[u32; 3]> = polygons
         .iter()
         .flat_map(|p| (1..p.len() - 1).map(move |k| [p[0], p[k], p[k + 1]]))
@@ -169,7 +169,11 @@ fn oriented_outward(positions: &[Vec3], mut polygons: Vec<Vec<u32>>) -> Vec<Vec<
 }
 
 /// Quads between consecutive rings of equal length, plus pole fans at both ends.
-fn tube(rings: &[Vec<u32>], first_pole: Option<u32>, last_pole: Option<u32>) -> Vec<Vec<u32>> {
+pub(crate) fn tube(
+    rings: &[Vec<u32>],
+    first_pole: Option<u32>,
+    last_pole: Option<u32>,
+) -> Vec<Vec<u32>> {
     let mut polys = Vec::new();
     for pair in rings.windows(2) {
         let (r0, r1) = (&pair[0], &pair[1]);
@@ -269,12 +273,12 @@ fn subdivided_box(center: Vec3, size: Vec3, div: [u32; 3]) -> Raw {
 }
 
 /// Radius profile of a fusiform muscle at parameter `t ∈ [0, 1]`.
-fn spindle(t: f32, belly: f32, tendon: f32) -> f32 {
+pub(crate) fn spindle(t: f32, belly: f32, tendon: f32) -> f32 {
     tendon + (belly - tendon) * (PI * t).sin().powf(1.5)
 }
 
 /// Orthonormal basis `(u, v)` perpendicular to `axis`.
-fn perpendicular_basis(axis: Vec3) -> (Vec3, Vec3) {
+pub(crate) fn perpendicular_basis(axis: Vec3) -> (Vec3, Vec3) {
     let helper = if axis.y.abs() < 0.9 { Vec3::Y } else { Vec3::Z };
     let u = axis.cross(helper).normalize();
     (u, axis.cross(u))

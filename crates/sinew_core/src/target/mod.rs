@@ -347,6 +347,28 @@ impl TargetSurface {
         Some(self.hit(query, d2, triangle, c, bary))
     }
 
+    /// Generalised winding number of the surface around a world point: ≈ 1
+    /// inside, ≈ 0 outside, and robust to the holes and slivers of scanned
+    /// bones (Jacobson et al. 2013). O(triangles); for build-time checks and
+    /// for confirming what the closest-point test reports.
+    pub fn winding_number(&self, query: Vec3) -> f32 {
+        let q = self.to_local(query);
+        let mut sum = 0.0f64;
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| (self.positions[i as usize] - q).as_dvec3());
+            let (la, lb, lc) = (a.length(), b.length(), c.length());
+            let numerator = a.dot(b.cross(c));
+            let denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+            sum += 2.0 * numerator.atan2(denominator);
+        }
+        (sum / (4.0 * std::f64::consts::PI)) as f32
+    }
+
+    /// Whether a world point is inside the surface (winding number > ½).
+    pub fn contains(&self, query: Vec3) -> bool {
+        self.winding_number(query) > 0.5
+    }
+
     /// A lower bound on the distance from `query` (world) to this target: the
     /// distance to its bounding box. Cheap; a muscle choosing its closest
     /// target skips targets whose bound exceeds the best distance found.

@@ -1,0 +1,865 @@
+//! A reader for the part of MuJoCo's MJCF that describes anatomy: `<include>`
+//! files, `<default>` classes, `<compiler>` units, mesh assets, the body tree
+//! with hinge / slide / ball joints, mesh geoms and sites, spatial tendons and
+//! the actuators that pull on them.
+//!
+//! Everything is kept in MuJoCo's frames (Z-up, metres); [`MjcfModel::attach`]
+//! composes models (optionally mirrored), the importer converts to Y-up.
+//!
+//! Not read (documented in `ARCHITECTURE.md`): wrapping geoms of tendons (the
+//! path runs through the sites only), equality constraints between joints,
+//! inertia, contacts, `<frame>` elements and free joints (an error names them).
+
+use crate::error::ImportError;
+use crate::skeleton::{JointKind, JointSpec};
+use glam::{Quat, Vec3};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Where an element was read: file and 1-based line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Origin {
+    /// File.
+    pub file: Arc<Path>,
+    /// 1-based line.
+    pub line: u32,
+}
+
+impl Origin {
+    fn error(&self, element: &str, reason: impl Into<String>) -> ImportError {
+        ImportError::Model {
+            file: self.file.to_path_buf(),
+            line: self.line,
+            element: element.to_string(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// A rigid body.
+#[derive(Clone, Debug)]
+pub struct MjBody {
+    /// Name (generated as `body<N>` when the file gives none).
+    pub name: String,
+    /// Parent body index; `None` = the world.
+    pub parent: Option<usize>,
+    /// Position in the parent frame. Units: m.
+    pub pos: Vec3,
+    /// Orientation in the parent frame.
+    pub quat: Quat,
+    /// Joints (angles in radians, lengths in metres).
+    pub joints: Vec<JointSpec>,
+    /// Where it was read.
+    pub origin: Origin,
+}
+
+/// A site: a named point fixed to a body.
+#[derive(Clone, Debug)]
+pub struct MjSite {
+    /// Name.
+    pub name: String,
+    /// Body index; `None` = the world.
+    pub body: Option<usize>,
+    /// Position in the body frame. Units: m.
+    pub pos: Vec3,
+    /// Orientation in the body frame.
+    pub quat: Quat,
+}
+
+/// A mesh asset.
+#[derive(Clone, Debug)]
+pub struct MjMesh {
+    /// Asset name.
+    pub name: String,
+    /// Resolved file path.
+    pub file: PathBuf,
+    /// Per-axis scale (a negative component mirrors the mesh).
+    pub scale: Vec3,
+}
+
+/// A mesh geom: a mesh asset placed in a body.
+#[derive(Clone, Debug)]
+pub struct MjGeom {
+    /// Geom name (may be empty).
+    pub name: String,
+    /// Body index; `None` = the world.
+    pub body: Option<usize>,
+    /// Mesh asset name.
+    pub mesh: String,
+    /// Position in the body frame. Units: m.
+    pub pos: Vec3,
+    /// Orientation in the body frame.
+    pub quat: Quat,
+}
+
+/// A spatial tendon: the sites its path runs through, in order.
+#[derive(Clone, Debug)]
+pub struct MjTendon {
+    /// Name.
+    pub name: String,
+    /// Site names along the path, each with where it was named. They are
+    /// resolved by [`MjcfModel::tendon_sites`], after composition, because a
+    /// fragment's tendons may run through sites of the model it attaches to.
+    pub sites: Vec<(String, Origin)>,
+    /// Wrapping geoms skipped (the path goes straight through their sites).
+    pub skipped_wraps: usize,
+    /// Where it was read.
+    pub origin: Origin,
+}
+
+/// An actuator acting on a tendon.
+#[derive(Clone, Debug)]
+pub struct MjActuator {
+    /// Name.
+    pub name: String,
+    /// Tendon index.
+    pub tendon: usize,
+    /// Maximum isometric force when the model gives one. Units: N.
+    pub force: Option<f32>,
+}
+
+/// A parsed model.
+#[derive(Clone, Debug, Default)]
+pub struct MjcfModel {
+    /// The main file.
+    pub file: PathBuf,
+    /// Bodies, parents before children.
+    pub bodies: Vec<MjBody>,
+    /// Sites.
+    pub sites: Vec<MjSite>,
+    /// Mesh assets.
+    pub meshes: Vec<MjMesh>,
+    /// Mesh geoms.
+    pub geoms: Vec<MjGeom>,
+    /// Spatial tendons.
+    pub tendons: Vec<MjTendon>,
+    /// Tendon actuators.
+    pub actuators: Vec<MjActuator>,
+}
+
+/// An XML element with `<include>`s expanded, owning its data.
+#[derive(Clone, Debug)]
+struct Element {
+    tag: String,
+    attrs: Vec<(String, String)>,
+    children: Vec<Element>,
+    origin: Origin,
+}
+
+impl Element {
+    fn get(&self, name: &str) -> Option<&str> {
+        self.attrs
+            .iter()
+            .find(|(k, _)| k == name)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
+const MAX_INCLUDE_DEPTH: usize = 16;
+
+fn read_element(path: &Path, depth: usize) -> Result<Element, ImportError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| {
+        let pos = e.pos();
+        ImportError::Xml {
+            file: path.to_path_buf(),
+            line: pos.row,
+            column: pos.col,
+            reason: e.to_string(),
+        }
+    })?;
+    let file: Arc<Path> = Arc::from(path);
+    convert(&doc, doc.root_element(), &file, depth)
+}
+
+fn convert(
+    doc: &roxmltree::Document,
+    node: roxmltree::Node,
+    file: &Arc<Path>,
+    depth: usize,
+) -> Result<Element, ImportError> {
+    let origin = Origin {
+        file: file.clone(),
+        line: doc.text_pos_at(node.range().start).row,
+    };
+    let mut children = Vec::new();
+    for child in node.children().filter(|n| n.is_element()) {
+        if child.tag_name().name() == "include" {
+            let here = Origin {
+                file: file.clone(),
+                line: doc.text_pos_at(child.range().start).row,
+            };
+            let name = child
+                .attribute("file")
+                .ok_or_else(|| here.error("include", "missing attribute 'file'"))?;
+            if depth >= MAX_INCLUDE_DEPTH {
+                return Err(here.error("include", "includes nested too deeply (a cycle?)"));
+            }
+            let target = file.parent().unwrap_or(Path::new(".")).join(name);
+            if !target.is_file() {
+                return Err(here.error(
+                    "include",
+                    format!("included file '{}' does not exist", target.display()),
+                ));
+            }
+            let included = read_element(&target, depth + 1)?;
+            children.extend(included.children);
+        } else {
+            children.push(convert(doc, child, file, depth)?);
+        }
+    }
+    Ok(Element {
+        tag: node.tag_name().name().to_string(),
+        attrs: node
+            .attributes()
+            .map(|a| (a.name().to_string(), a.value().to_string()))
+            .collect(),
+        children,
+        origin,
+    })
+}
+
+/// `class → tag → attributes`, each class already merged with its parents.
+type Defaults = HashMap<String, HashMap<String, Vec<(String, String)>>>;
+
+fn read_defaults(
+    e: &Element,
+    inherited: &HashMap<String, Vec<(String, String)>>,
+    out: &mut Defaults,
+) {
+    let class = e.get("class").unwrap_or("main").to_string();
+    let mut own = inherited.clone();
+    for c in e.children.iter().filter(|c| c.tag != "default") {
+        let slot = own.entry(c.tag.clone()).or_default();
+        for (k, v) in &c.attrs {
+            match slot.iter_mut().find(|(sk, _)| sk == k) {
+                Some(existing) => existing.1 = v.clone(),
+                None => slot.push((k.clone(), v.clone())),
+            }
+        }
+    }
+    for c in e.children.iter().filter(|c| c.tag == "default") {
+        read_defaults(c, &own, out);
+    }
+    out.insert(class, own);
+}
+
+#[derive(Clone, Debug)]
+struct Compiler {
+    degrees: bool,
+    euler_sequence: String,
+    mesh_dir: String,
+}
+
+/// An element's attributes with its class defaults behind them.
+struct Attrs<'e> {
+    element: &'e Element,
+    defaults: Option<&'e Vec<(String, String)>>,
+}
+
+impl<'e> Attrs<'e> {
+    fn get(&self, name: &str) -> Option<&'e str> {
+        self.element.get(name).or_else(|| {
+            self.defaults?
+                .iter()
+                .find(|(k, _)| k == name)
+                .map(|(_, v)| v.as_str())
+        })
+    }
+}
+
+struct Reader<'a> {
+    main_dir: PathBuf,
+    defaults: &'a Defaults,
+    compiler: Compiler,
+    model: MjcfModel,
+    site_index: HashMap<String, usize>,
+}
+
+fn floats(origin: &Origin, tag: &str, name: &str, text: &str) -> Result<Vec<f32>, ImportError> {
+    text.split_whitespace()
+        .map(|t| {
+            t.parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    origin.error(
+                        tag,
+                        format!("attribute '{name}': '{t}' is not a finite number"),
+                    )
+                })
+        })
+        .collect()
+}
+
+impl<'a> Reader<'a> {
+    /// Attributes of `e`, falling back to its default class.
+    fn attr<'e>(&self, e: &'e Element, class: &str) -> Attrs<'e>
+    where
+        'a: 'e,
+    {
+        let class = e.get("class").unwrap_or(class);
+        let defaults: &'a Defaults = self.defaults;
+        Attrs {
+            element: e,
+            defaults: defaults
+                .get(class)
+                .or_else(|| defaults.get("main"))
+                .and_then(|d| d.get(&e.tag)),
+        }
+    }
+
+    fn vector<const N: usize>(
+        &self,
+        e: &Element,
+        name: &str,
+        value: Option<&str>,
+    ) -> Result<Option<[f32; N]>, ImportError> {
+        let Some(text) = value else { return Ok(None) };
+        let v = floats(&e.origin, &e.tag, name, text)?;
+        let array: [f32; N] = v.try_into().map_err(|v: Vec<f32>| {
+            e.origin.error(
+                &e.tag,
+                format!("attribute '{name}' needs {N} numbers, has {}", v.len()),
+            )
+        })?;
+        Ok(Some(array))
+    }
+
+    fn angle(&self, a: f32) -> f32 {
+        if self.compiler.degrees {
+            a.to_radians()
+        } else {
+            a
+        }
+    }
+
+    /// Position and orientation of a body, geom or site.
+    fn frame(&self, e: &Element, attrs: &Attrs) -> Result<(Vec3, Quat), ImportError> {
+        let get = |n: &str| attrs.get(n);
+        let pos = self
+            .vector::<3>(e, "pos", get("pos"))?
+            .map_or(Vec3::ZERO, Vec3::from);
+        let quat = if let Some([w, x, y, z]) = self.vector::<4>(e, "quat", get("quat"))? {
+            Quat::from_xyzw(x, y, z, w)
+        } else if let Some([x, y, z, a]) = self.vector::<4>(e, "axisangle", get("axisangle"))? {
+            let axis = Vec3::new(x, y, z)
+                .try_normalize()
+                .ok_or_else(|| e.origin.error(&e.tag, "axisangle has a zero axis"))?;
+            Quat::from_axis_angle(axis, self.angle(a))
+        } else if let Some(angles) = self.vector::<3>(e, "euler", get("euler"))? {
+            let seq = &self.compiler.euler_sequence;
+            let mut q = Quat::IDENTITY;
+            for (c, a) in seq.chars().zip(angles) {
+                let axis = match c.to_ascii_lowercase() {
+                    'x' => Vec3::X,
+                    'y' => Vec3::Y,
+                    'z' => Vec3::Z,
+                    _ => return Err(e.origin.error(&e.tag, format!("eulerseq '{seq}'"))),
+                };
+                let r = Quat::from_axis_angle(axis, self.angle(a));
+                // Lower case: rotating (intrinsic) axes; upper case: fixed axes.
+                q = if c.is_ascii_lowercase() { q * r } else { r * q };
+            }
+            q
+        } else if let Some([ax, ay, az, bx, by, bz]) =
+            self.vector::<6>(e, "xyaxes", get("xyaxes"))?
+        {
+            let x = Vec3::new(ax, ay, az).normalize_or_zero();
+            let y = (Vec3::new(bx, by, bz) - x * x.dot(Vec3::new(bx, by, bz))).normalize_or_zero();
+            if x == Vec3::ZERO || y == Vec3::ZERO {
+                return Err(e.origin.error(&e.tag, "xyaxes are degenerate"));
+            }
+            Quat::from_mat3(&glam::Mat3::from_cols(x, y, x.cross(y)))
+        } else if let Some(z) = self.vector::<3>(e, "zaxis", get("zaxis"))? {
+            let z = Vec3::from(z)
+                .try_normalize()
+                .ok_or_else(|| e.origin.error(&e.tag, "zaxis has zero length"))?;
+            Quat::from_rotation_arc(Vec3::Z, z)
+        } else {
+            Quat::IDENTITY
+        };
+        Ok((pos, quat.normalize()))
+    }
+
+    fn body(&mut self, e: &Element, parent: Option<usize>, class: &str) -> Result<(), ImportError> {
+        let index = self.model.bodies.len();
+        let attrs = self.attr(e, class);
+        let name = attrs
+            .get("name")
+            .map_or_else(|| format!("body{index}"), str::to_string);
+        let (pos, quat) = self.frame(e, &attrs)?;
+        let child_class = e.get("childclass").unwrap_or(class).to_string();
+        self.model.bodies.push(MjBody {
+            name,
+            parent,
+            pos,
+            quat,
+            joints: Vec::new(),
+            origin: e.origin.clone(),
+        });
+        self.children(e, Some(index), &child_class)
+    }
+
+    fn children(
+        &mut self,
+        e: &Element,
+        body: Option<usize>,
+        class: &str,
+    ) -> Result<(), ImportError> {
+        for c in &e.children {
+            match c.tag.as_str() {
+                "body" => self.body(c, body, class)?,
+                "joint" => {
+                    let joint = self.joint(c, class)?;
+                    let b = body.ok_or_else(|| c.origin.error("joint", "a joint needs a body"))?;
+                    self.model.bodies[b].joints.push(joint);
+                }
+                "freejoint" => {
+                    return Err(c.origin.error(
+                        "freejoint",
+                        "joint type 'free' is not supported (sinew poses the root from the scene)",
+                    ));
+                }
+                "geom" => self.geom(c, body, class)?,
+                "site" => self.site(c, body, class)?,
+                "frame" => {
+                    return Err(c
+                        .origin
+                        .error("frame", "<frame> elements are not supported"));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    fn joint(&self, e: &Element, class: &str) -> Result<JointSpec, ImportError> {
+        let attrs = self.attr(e, class);
+        let get = |n: &str| attrs.get(n);
+        let name = get("name").unwrap_or_default().to_string();
+        let kind = match get("type").unwrap_or("hinge") {
+            "hinge" => JointKind::Hinge,
+            "slide" => JointKind::Slide,
+            "ball" => JointKind::Ball,
+            other => {
+                return Err(e.origin.error(
+                    "joint",
+                    format!("joint '{name}' has type '{other}', which sinew does not support (hinge, slide, ball)"),
+                ));
+            }
+        };
+        let anchor = self
+            .vector::<3>(e, "pos", get("pos"))?
+            .map_or(Vec3::ZERO, Vec3::from);
+        let axis = self
+            .vector::<3>(e, "axis", get("axis"))?
+            .map_or(Vec3::Z, Vec3::from);
+        if kind != JointKind::Ball && axis.length_squared() == 0.0 {
+            return Err(e
+                .origin
+                .error("joint", format!("joint '{name}' has a zero axis")));
+        }
+        let limited = get("limited").is_none_or(|l| l != "false");
+        let range = match self.vector::<2>(e, "range", get("range"))? {
+            Some([lo, hi]) if limited && kind == JointKind::Hinge => {
+                Some((self.angle(lo), self.angle(hi)))
+            }
+            Some([lo, hi]) if limited && kind == JointKind::Slide => Some((lo, hi)),
+            _ => None,
+        };
+        if let Some((lo, hi)) = range
+            && lo > hi
+        {
+            return Err(e
+                .origin
+                .error("joint", format!("joint '{name}' range is empty")));
+        }
+        Ok(JointSpec {
+            name,
+            kind,
+            anchor,
+            axis: axis.normalize_or_zero(),
+            range,
+        })
+    }
+
+    fn geom(&mut self, e: &Element, body: Option<usize>, class: &str) -> Result<(), ImportError> {
+        let attrs = self.attr(e, class);
+        let get = |n: &str| attrs.get(n);
+        let Some(mesh) = get("mesh") else {
+            return Ok(());
+        };
+        if get("type").is_some_and(|t| t != "mesh") {
+            return Ok(());
+        }
+        let (pos, quat) = self.frame(e, &attrs)?;
+        self.model.geoms.push(MjGeom {
+            name: get("name").unwrap_or_default().to_string(),
+            body,
+            mesh: mesh.to_string(),
+            pos,
+            quat,
+        });
+        Ok(())
+    }
+
+    fn site(&mut self, e: &Element, body: Option<usize>, class: &str) -> Result<(), ImportError> {
+        let attrs = self.attr(e, class);
+        let get = |n: &str| attrs.get(n);
+        let Some(name) = get("name") else {
+            return Ok(());
+        };
+        let (pos, quat) = self.frame(e, &attrs)?;
+        if self
+            .site_index
+            .insert(name.to_string(), self.model.sites.len())
+            .is_some()
+        {
+            return Err(e
+                .origin
+                .error("site", format!("duplicate site name '{name}'")));
+        }
+        self.model.sites.push(MjSite {
+            name: name.to_string(),
+            body,
+            pos,
+            quat,
+        });
+        Ok(())
+    }
+
+    fn mesh_asset(&mut self, e: &Element) -> Result<(), ImportError> {
+        let attrs = self.attr(e, "main");
+        let get = |n: &str| attrs.get(n);
+        let file = get("file").ok_or_else(|| e.origin.error("mesh", "missing attribute 'file'"))?;
+        let name = get("name").map(str::to_string).unwrap_or_else(|| {
+            Path::new(file)
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        });
+        let scale = self
+            .vector::<3>(e, "scale", get("scale"))?
+            .map_or(Vec3::ONE, Vec3::from);
+        let path = Path::new(file);
+        let file = if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            self.main_dir.join(&self.compiler.mesh_dir).join(path)
+        };
+        self.model.meshes.push(MjMesh { name, file, scale });
+        Ok(())
+    }
+
+    fn tendon(&mut self, e: &Element) -> Result<(), ImportError> {
+        let name = e.get("name").unwrap_or_default().to_string();
+        let mut sites = Vec::new();
+        let mut skipped_wraps = 0;
+        for c in &e.children {
+            match c.tag.as_str() {
+                "site" => {
+                    let site = c
+                        .get("site")
+                        .ok_or_else(|| c.origin.error("site", "missing attribute 'site'"))?;
+                    sites.push((site.to_string(), c.origin.clone()));
+                }
+                "geom" => skipped_wraps += 1,
+                "pulley" => {
+                    return Err(c.origin.error(
+                        "pulley",
+                        format!("tendon '{name}': branching tendons (pulleys) are not supported"),
+                    ));
+                }
+                _ => {}
+            }
+        }
+        self.model.tendons.push(MjTendon {
+            name,
+            sites,
+            skipped_wraps,
+            origin: e.origin.clone(),
+        });
+        Ok(())
+    }
+
+    fn actuator(&mut self, e: &Element) -> Result<(), ImportError> {
+        let attrs = self.attr(e, "main");
+        let get = |n: &str| attrs.get(n);
+        let Some(tendon) = get("tendon") else {
+            return Ok(());
+        };
+        let index = self
+            .model
+            .tendons
+            .iter()
+            .position(|t| t.name == tendon)
+            .ok_or_else(|| {
+                e.origin.error(
+                    &e.tag,
+                    format!("actuator names tendon '{tendon}', which does not exist"),
+                )
+            })?;
+        let force = match e.tag.as_str() {
+            "muscle" => get("force")
+                .map(|f| floats(&e.origin, &e.tag, "force", f))
+                .transpose()?
+                .and_then(|v| v.first().copied()),
+            "general" if get("gaintype") == Some("muscle") => get("gainprm")
+                .map(|g| floats(&e.origin, &e.tag, "gainprm", g))
+                .transpose()?
+                .and_then(|v| v.get(2).copied()),
+            _ => None,
+        }
+        .filter(|&f| f > 0.0);
+        self.model.actuators.push(MjActuator {
+            name: get("name").unwrap_or(tendon).to_string(),
+            tendon: index,
+            force,
+        });
+        Ok(())
+    }
+}
+
+impl MjcfModel {
+    /// Reads an MJCF file (a `<mujoco>` model or a `<mujocoinclude>` fragment)
+    /// with its includes.
+    pub fn load(path: &Path) -> Result<Self, ImportError> {
+        let root = read_element(path, 0)?;
+        if root.tag != "mujoco" && root.tag != "mujocoinclude" {
+            return Err(root.origin.error(
+                &root.tag,
+                "root element must be <mujoco> or <mujocoinclude>",
+            ));
+        }
+        let mut defaults = Defaults::new();
+        defaults.insert("main".into(), HashMap::new());
+        let mut compiler = Compiler {
+            degrees: true,
+            euler_sequence: "xyz".into(),
+            mesh_dir: String::new(),
+        };
+        for c in &root.children {
+            match c.tag.as_str() {
+                "default" => {
+                    let inherited = defaults.get("main").cloned().unwrap_or_default();
+                    read_defaults(c, &inherited, &mut defaults);
+                }
+                "compiler" => {
+                    if let Some(a) = c.get("angle") {
+                        compiler.degrees = match a {
+                            "degree" => true,
+                            "radian" => false,
+                            _ => return Err(c.origin.error("compiler", format!("angle '{a}'"))),
+                        };
+                    }
+                    if let Some(s) = c.get("eulerseq") {
+                        compiler.euler_sequence = s.to_string();
+                    }
+                    if let Some(d) = c.get("meshdir") {
+                        compiler.mesh_dir = d.to_string();
+                    }
+                }
+                _ => {}
+            }
+        }
+        let mut reader = Reader {
+            main_dir: path.parent().unwrap_or(Path::new(".")).to_path_buf(),
+            defaults: &defaults,
+            compiler,
+            model: MjcfModel {
+                file: path.to_path_buf(),
+                ..Default::default()
+            },
+            site_index: HashMap::new(),
+        };
+        // Bodies and sites first (tendons refer to sites), then assets,
+        // tendons and actuators, in file order within each.
+        for c in root.children.iter().filter(|c| c.tag == "worldbody") {
+            reader.children(c, None, "main")?;
+        }
+        for c in root.children.iter().filter(|c| c.tag == "asset") {
+            for m in c.children.iter().filter(|m| m.tag == "mesh") {
+                reader.mesh_asset(m)?;
+            }
+        }
+        for c in root.children.iter().filter(|c| c.tag == "tendon") {
+            for t in c.children.iter().filter(|t| t.tag == "spatial") {
+                reader.tendon(t)?;
+            }
+        }
+        for c in root.children.iter().filter(|c| c.tag == "actuator") {
+            for a in &c.children {
+                reader.actuator(a)?;
+            }
+        }
+        Ok(reader.model)
+    }
+
+    /// Index of a body by name.
+    pub fn body_index(&self, name: &str) -> Option<usize> {
+        self.bodies.iter().position(|b| b.name == name)
+    }
+
+    /// Index of a site by name.
+    pub fn site_index(&self, name: &str) -> Option<usize> {
+        self.sites.iter().position(|s| s.name == name)
+    }
+
+    /// The sites of tendon `t`'s path, in order; a missing site is an error
+    /// naming the file and line that refers to it.
+    pub fn tendon_sites(&self, t: usize) -> Result<Vec<&MjSite>, ImportError> {
+        let tendon = &self.tendons[t];
+        tendon
+            .sites
+            .iter()
+            .map(|(name, origin)| {
+                self.site_index(name)
+                    .map(|i| &self.sites[i])
+                    .ok_or_else(|| {
+                        origin.error(
+                            "site",
+                            format!(
+                                "tendon '{}' names site '{name}', which does not exist",
+                                tendon.name
+                            ),
+                        )
+                    })
+            })
+            .collect()
+    }
+
+    /// A mesh asset by name.
+    pub fn mesh(&self, name: &str) -> Option<&MjMesh> {
+        self.meshes.iter().find(|m| m.name == name)
+    }
+
+    /// Attaches `child`'s root bodies at site `site` of this model. With
+    /// `mirror`, the child is first reflected through its local XY plane
+    /// (z → −z, as myo-sim builds a left arm from the right one) and renamed:
+    /// a trailing `_r` becomes `_l`, other names get `_l` appended.
+    pub fn attach(
+        &mut self,
+        child: &MjcfModel,
+        site: &str,
+        mirror: bool,
+    ) -> Result<(), ImportError> {
+        let s = self
+            .site_index(site)
+            .ok_or_else(|| ImportError::UnknownName {
+                context: format!("attaching {}", child.file.display()),
+                kind: "site",
+                name: site.to_string(),
+            })?;
+        let (site_body, site_pos, site_quat) =
+            (self.sites[s].body, self.sites[s].pos, self.sites[s].quat);
+        let child = if mirror {
+            child.mirrored()
+        } else {
+            child.clone()
+        };
+        let (b0, t0) = (self.bodies.len(), self.tendons.len());
+        for mut b in child.bodies {
+            match b.parent {
+                Some(p) => b.parent = Some(p + b0),
+                None => {
+                    b.parent = site_body;
+                    b.pos = site_pos + site_quat * b.pos;
+                    b.quat = site_quat * b.quat;
+                }
+            }
+            self.bodies.push(b);
+        }
+        let reparent = |body: Option<usize>| body.map(|b| b + b0).or(site_body);
+        self.sites.extend(child.sites.into_iter().map(|mut x| {
+            x.body = reparent(x.body);
+            x
+        }));
+        self.geoms.extend(child.geoms.into_iter().map(|mut g| {
+            g.body = reparent(g.body);
+            g
+        }));
+        for m in child.meshes {
+            if self.mesh(&m.name).is_none() {
+                self.meshes.push(m);
+            }
+        }
+        self.tendons.extend(child.tendons);
+        self.actuators
+            .extend(child.actuators.into_iter().map(|mut a| {
+                a.tendon += t0;
+                a
+            }));
+        let mut names = std::collections::HashSet::new();
+        for b in &self.bodies {
+            if !names.insert(&b.name) {
+                return Err(b.origin.error(
+                    "body",
+                    format!("duplicate body name '{}' after attaching", b.name),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// This model reflected through z = 0 of every local frame, renamed to the
+    /// left side.
+    pub fn mirrored(&self) -> MjcfModel {
+        let reflect = |v: Vec3| Vec3::new(v.x, v.y, -v.z);
+        // A rotation R becomes M R M: its axis maps to −M·axis.
+        let reflect_quat = |q: Quat| Quat::from_xyzw(-q.x, -q.y, q.z, q.w);
+        let mut m = self.clone();
+        for b in &mut m.bodies {
+            b.name = left_name(&b.name);
+            b.pos = reflect(b.pos);
+            b.quat = reflect_quat(b.quat);
+            for j in &mut b.joints {
+                j.name = left_name(&j.name);
+                j.anchor = reflect(j.anchor);
+                // Hinges keep their angle sense; slides move along the mirrored axis.
+                j.axis = match j.kind {
+                    JointKind::Slide => reflect(j.axis),
+                    _ => -reflect(j.axis),
+                };
+            }
+        }
+        for s in &mut m.sites {
+            s.name = left_name(&s.name);
+            s.pos = reflect(s.pos);
+            s.quat = reflect_quat(s.quat);
+        }
+        for g in &mut m.geoms {
+            g.name = left_name(&g.name);
+            g.mesh = left_name(&g.mesh);
+            g.pos = reflect(g.pos);
+            g.quat = reflect_quat(g.quat);
+        }
+        for mesh in &mut m.meshes {
+            mesh.name = left_name(&mesh.name);
+            mesh.scale.z = -mesh.scale.z;
+        }
+        for t in &mut m.tendons {
+            t.name = left_name(&t.name);
+            for (site, _) in &mut t.sites {
+                *site = left_name(site);
+            }
+        }
+        for a in &mut m.actuators {
+            a.name = left_name(&a.name);
+        }
+        m
+    }
+}
+
+/// `humerus_r` → `humerus_l`; `DELT1` → `DELT1_l`.
+pub fn left_name(name: &str) -> String {
+    match name.strip_suffix("_r") {
+        Some(stem) => format!("{stem}_l"),
+        None if name.is_empty() => String::new(),
+        None => format!("{name}_l"),
+    }
+}

@@ -1,0 +1,795 @@
+//! Importing anatomy: MuJoCo MJCF models (bones, joints, muscle paths) become
+//! sinew scenes with swept muscle meshes.
+//!
+//! - [`mjcf`] reads the model (with includes, defaults, composition and
+//!   mirroring).
+//! - [`builder`] sweeps a fusiform muscle along each tendon path.
+//! - [`import_model`] assembles a [`Scene`]: one bone per body following the
+//!   skeleton, bone meshes for the bones muscles touch, one muscle per chosen
+//!   actuator with its roots, attachments, fibres and neighbour targets.
+//! - [`ImportRecipe`] is the RON file that makes a whole reference scene
+//!   (model, composition, muscles, motion, sensors, drives) reproducible with
+//!   one command: `sinew import-mjcf recipe.ron`.
+
+pub mod builder;
+pub mod mjcf;
+
+use crate::animation::Curve;
+use crate::error::ImportError;
+use crate::mesh::{LoadOptions, SurfaceMesh, load_mesh};
+use crate::muscle::{MuscleParams, Roots, VertexMaps};
+use crate::scene::{AttachmentSpec, BoneShape, BoneSpec, MeshSource, MuscleSpec, Scene};
+use crate::sensor::{ActivationLayer, SensorSpec};
+use crate::skeleton::{BodySpec, JointMotion, Skeleton, SkeletonRig};
+use crate::solver::SolverSettings;
+use crate::target::{TargetSource, TargetSurface};
+use builder::{SweepOptions, push_out_of_bones, sweep_path};
+use glam::{Affine3A, Quat, Vec3};
+use mjcf::MjcfModel;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Which bones get a mesh in the scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BoneMeshes {
+    /// Only bones that some muscle targets or is attached to.
+    #[default]
+    Used,
+    /// Every body with a mesh geom.
+    All,
+}
+
+/// A user mesh to use for a muscle instead of sweeping one.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct UserMuscleMesh {
+    /// Muscle (actuator) name.
+    pub muscle: String,
+    /// OBJ or STL file (relative to the recipe or the working directory), in
+    /// the model's world frame after the Y-up conversion. Units: m.
+    pub file: String,
+}
+
+/// Per-muscle targets replacing the automatic choice.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TargetOverride {
+    /// Muscle name.
+    pub muscle: String,
+    /// Bone and muscle names.
+    pub targets: Vec<String>,
+}
+
+/// How a model is turned into a scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ImportOptions {
+    /// Actuators to make muscles of; empty = every tendon actuator.
+    pub muscles: Vec<String>,
+    /// Mesh resolution and thickness.
+    pub sweep: SweepOptions,
+    /// Per-muscle belly radius overrides `(muscle, radius m)`.
+    pub radii: Vec<(String, f32)>,
+    /// User meshes instead of swept ones.
+    pub user_meshes: Vec<UserMuscleMesh>,
+    /// Rings at each end held by the bone, besides the tip vertex.
+    pub attach_rings: u32,
+    /// Most muscles a muscle targets (nearest first).
+    pub muscle_targets: usize,
+    /// Most bones a muscle targets (nearest first).
+    pub bone_targets: usize,
+    /// Neighbours farther than this are not targets. Units: m.
+    pub neighbour_distance: f32,
+    /// Targets chosen by hand.
+    pub targets: Vec<TargetOverride>,
+    /// Vertices inside a bone are pushed this far outside it. Units: m.
+    pub push_out_margin: f32,
+    /// Which bones get meshes.
+    pub bone_meshes: BoneMeshes,
+    /// Convert MuJoCo's Z-up to Y-up (Bevy). Default: true.
+    pub y_up: bool,
+    /// Parameters of every muscle.
+    pub params: MuscleParams,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        Self {
+            muscles: Vec::new(),
+            sweep: SweepOptions::default(),
+            radii: Vec::new(),
+            user_meshes: Vec::new(),
+            attach_rings: 1,
+            muscle_targets: 5,
+            bone_targets: 3,
+            neighbour_distance: 0.02,
+            targets: Vec::new(),
+            push_out_margin: 0.001,
+            bone_meshes: BoneMeshes::Used,
+            y_up: true,
+            params: MuscleParams::default(),
+        }
+    }
+}
+
+/// Rotation taking MuJoCo's Z-up world to Y-up: (x, y, z) → (x, z, −y).
+pub fn z_up_to_y_up() -> Quat {
+    Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)
+}
+
+/// A bone's triangles in its body frame.
+struct BoneGeometry {
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// Loads and places the mesh geoms of every body (body frame), welded, with
+/// degenerate triangles dropped.
+fn bone_geometry(model: &MjcfModel) -> Result<Vec<Option<BoneGeometry>>, ImportError> {
+    let mut out: Vec<Option<BoneGeometry>> = (0..model.bodies.len()).map(|_| None).collect();
+    for g in &model.geoms {
+        let Some(body) = g.body else { continue };
+        let asset = model
+            .mesh(&g.mesh)
+            .ok_or_else(|| ImportError::UnknownName {
+                context: format!("geom '{}' of body '{}'", g.name, model.bodies[body].name),
+                kind: "mesh asset",
+                name: g.mesh.clone(),
+            })?;
+        let options = LoadOptions {
+            weld_tolerance: Some(1e-6),
+            ..Default::default()
+        };
+        let mesh = match load_mesh(&asset.file, &options) {
+            Ok(m) => m,
+            // Real bone scans have slivers; a target only needs triangles.
+            Err(crate::MeshError::DegenerateFace { .. }) => tolerant_load(&asset.file)?,
+            Err(e) => return Err(e.into()),
+        };
+        let flip = asset.scale.x * asset.scale.y * asset.scale.z < 0.0;
+        let place = Affine3A::from_rotation_translation(g.quat, g.pos);
+        let geometry = out[body].get_or_insert_with(|| BoneGeometry {
+            positions: Vec::new(),
+            triangles: Vec::new(),
+        });
+        let base = geometry.positions.len() as u32;
+        geometry.positions.extend(
+            mesh.positions
+                .iter()
+                .map(|&p| place.transform_point3(p * asset.scale)),
+        );
+        geometry.triangles.extend(mesh.triangles.iter().map(|t| {
+            let t = if flip { [t[0], t[2], t[1]] } else { *t };
+            t.map(|i| i + base)
+        }));
+    }
+    Ok(out)
+}
+
+/// Loads a mesh keeping only triangles with a non-zero area.
+fn tolerant_load(path: &Path) -> Result<SurfaceMesh, ImportError> {
+    let raw = load_mesh(
+        path,
+        &LoadOptions {
+            weld_tolerance: None,
+            ..Default::default()
+        },
+    );
+    // Without welding STL triangles are separate; drop slivers and weld again.
+    let soup = match raw {
+        Ok(m) => m,
+        Err(_) => {
+            let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
+                file: path.to_path_buf(),
+                source,
+            })?;
+            let mut cursor = std::io::Cursor::new(bytes);
+            let tris = stl_io::read_stl(&mut cursor).map_err(|e| {
+                ImportError::Mesh(crate::MeshError::Parse {
+                    file: path.to_path_buf(),
+                    reason: e.to_string(),
+                })
+            })?;
+            let positions: Vec<Vec3> = tris
+                .vertices
+                .iter()
+                .map(|v| Vec3::from_array(v.0))
+                .collect();
+            let polys: Vec<Vec<u32>> = tris
+                .faces
+                .iter()
+                .filter(|f| {
+                    let [a, b, c] = f.vertices.map(|i| positions[i]);
+                    (b - a).cross(c - a).length() > 1e-12
+                })
+                .map(|f| f.vertices.iter().map(|&i| i as u32).collect())
+                .collect();
+            return Ok(crate::mesh::load::from_raw(
+                path,
+                positions,
+                polys,
+                &LoadOptions::default(),
+            )?);
+        }
+    };
+    Ok(soup)
+}
+
+/// Result of [`import_model`].
+#[derive(Debug)]
+pub struct Imported {
+    /// The scene (mesh paths relative to the scene file's directory).
+    pub scene: Scene,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+    /// Notes for the user (skipped wraps, pushed-out vertices …).
+    pub notes: Vec<String>,
+}
+
+struct BuiltMuscle {
+    name: String,
+    mesh: SurfaceMesh,
+    fibers: Vec<Vec3>,
+    tips: [u32; 2],
+    ends: [Vec<u32>; 2],
+    bodies: [Option<usize>; 2],
+    centers: Vec<Vec3>,
+}
+
+/// Turns `model` into a scene. Meshes are written under
+/// `scene_dir/mesh_dir`; the scene refers to them relative to `scene_dir`.
+pub fn import_model(
+    model: &MjcfModel,
+    options: &ImportOptions,
+    scene_dir: &Path,
+    mesh_dir: &Path,
+) -> Result<Imported, ImportError> {
+    let mut notes = Vec::new();
+    // Skeleton, in Y-up when asked.
+    let root = if options.y_up {
+        z_up_to_y_up()
+    } else {
+        Quat::IDENTITY
+    };
+    let bodies: Vec<BodySpec> = model
+        .bodies
+        .iter()
+        .map(|b| BodySpec {
+            name: b.name.clone(),
+            parent: b.parent.map(|p| model.bodies[p].name.clone()),
+            translation: if b.parent.is_none() {
+                root * b.pos
+            } else {
+                b.pos
+            },
+            rotation: if b.parent.is_none() {
+                root * b.quat
+            } else {
+                b.quat
+            },
+            joints: b.joints.clone(),
+        })
+        .collect();
+    let skeleton = Skeleton {
+        bodies,
+        motion: Vec::new(),
+    };
+    let rig: SkeletonRig = skeleton.compile()?;
+    let mut world = Vec::new();
+    rig.pose(&vec![0.0; rig.value_count()], &mut world);
+    let world_root = Affine3A::from_quat(root);
+    let frame_of = |body: Option<usize>| body.map_or(world_root, |b| world[b]);
+
+    // Bones in the world (reference pose) for push-out and target choice.
+    let geometry = bone_geometry(model)?;
+    let bone_targets: Vec<Option<TargetSurface>> = geometry
+        .iter()
+        .enumerate()
+        .map(|(b, g)| {
+            g.as_ref().map(|g| {
+                let mut t = TargetSurface::new(
+                    model.bodies[b].name.clone(),
+                    TargetSource::Bone(b),
+                    g.positions.clone(),
+                    g.triangles.clone(),
+                );
+                t.set_transform(world[b]);
+                t
+            })
+        })
+        .collect();
+    let bone_boxes: Vec<Option<(Vec3, Vec3)>> = bone_targets
+        .iter()
+        .zip(&geometry)
+        .enumerate()
+        .map(|(b, (t, g))| {
+            t.as_ref().map(|_| {
+                let pts: Vec<Vec3> = g
+                    .as_ref()
+                    .unwrap()
+                    .positions
+                    .iter()
+                    .map(|&p| world[b].transform_point3(p))
+                    .collect();
+                crate::mesh::bounds_of(&pts)
+            })
+        })
+        .collect();
+
+    // Muscles.
+    let chosen: Vec<usize> = if options.muscles.is_empty() {
+        (0..model.actuators.len()).collect()
+    } else {
+        options
+            .muscles
+            .iter()
+            .map(|name| {
+                model
+                    .actuators
+                    .iter()
+                    .position(|a| &a.name == name)
+                    .ok_or_else(|| ImportError::UnknownName {
+                        context: format!("import of {}", model.file.display()),
+                        kind: "muscle (actuator)",
+                        name: name.clone(),
+                    })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let mut built = Vec::with_capacity(chosen.len());
+    for &a in &chosen {
+        let actuator = &model.actuators[a];
+        let tendon = &model.tendons[actuator.tendon];
+        let sites = model.tendon_sites(actuator.tendon)?;
+        let points: Vec<Vec3> = sites
+            .iter()
+            .map(|s| frame_of(s.body).transform_point3(s.pos))
+            .collect();
+        if tendon.skipped_wraps > 0 {
+            notes.push(format!(
+                "{}: {} wrapping geom(s) ignored; the path runs through its {} sites",
+                actuator.name,
+                tendon.skipped_wraps,
+                sites.len()
+            ));
+        }
+        let name = actuator.name.clone();
+        let bodies = [
+            sites.first().and_then(|s| s.body),
+            sites.last().and_then(|s| s.body),
+        ];
+        let mut m = if let Some(user) = options.user_meshes.iter().find(|u| u.muscle == name) {
+            user_muscle(&name, Path::new(&user.file), &points, options)?
+        } else {
+            let mut sweep = options.sweep.clone();
+            if let Some((_, r)) = options.radii.iter().find(|(m, _)| *m == name) {
+                sweep.radius = Some(*r);
+            }
+            let s = sweep_path(&name, &points, actuator.force, &sweep)?;
+            let take = options.attach_rings.min(s.rings.len() as u32 / 2) as usize;
+            let first: Vec<u32> = s.rings[..take].iter().flatten().copied().collect();
+            let last: Vec<u32> = s.rings[s.rings.len() - take..]
+                .iter()
+                .flatten()
+                .copied()
+                .collect();
+            BuiltMuscle {
+                name: name.clone(),
+                mesh: s.mesh,
+                fibers: s.fibers,
+                tips: [s.first_tip, s.last_tip],
+                ends: [first, last],
+                bodies,
+                centers: s.centers,
+            }
+        };
+        m.bodies = bodies;
+        // Push the surface out of nearby bones (not the tips or held rings).
+        let (lo, hi) = crate::mesh::bounds_of(&m.mesh.positions);
+        let near: Vec<&TargetSurface> = bone_targets
+            .iter()
+            .zip(&bone_boxes)
+            .filter_map(|(t, bx)| {
+                let (blo, bhi) = (*bx)?;
+                let overlap = (lo.cmple(bhi) & hi.cmpge(blo)).all();
+                overlap.then_some(t.as_ref()?)
+            })
+            .collect();
+        let mut keep: Vec<u32> = m.tips.to_vec();
+        keep.extend(m.ends.iter().flatten());
+        let mut positions = m.mesh.positions.clone();
+        let moved = push_out_of_bones(
+            &mut positions,
+            &m.centers,
+            &near,
+            options.push_out_margin,
+            &keep,
+        );
+        if moved > 0 {
+            notes.push(format!("{name}: {moved} vertices pushed out of bones"));
+            m.mesh = SurfaceMesh::new(
+                m.mesh.source.clone(),
+                positions,
+                &m.mesh.polygons().map(<[u32]>::to_vec).collect::<Vec<_>>(),
+            )?;
+        }
+        built.push(m);
+    }
+
+    // Targets by neighbourhood.
+    let boxes: Vec<(Vec3, Vec3)> = built
+        .iter()
+        .map(|m| crate::mesh::bounds_of(&m.mesh.positions))
+        .collect();
+    let reach = options.neighbour_distance;
+    let mut targets: Vec<Vec<String>> = Vec::with_capacity(built.len());
+    let mut used_bones = vec![false; model.bodies.len()];
+    for (i, m) in built.iter().enumerate() {
+        if let Some(o) = options.targets.iter().find(|o| o.muscle == m.name) {
+            targets.push(o.targets.clone());
+            continue;
+        }
+        let grown = |b: (Vec3, Vec3)| (b.0 - Vec3::splat(reach), b.1 + Vec3::splat(reach));
+        let (lo, hi) = grown(boxes[i]);
+        let mut muscles: Vec<(f32, usize)> = Vec::new();
+        for (j, o) in built.iter().enumerate() {
+            if j == i || !(lo.cmple(boxes[j].1) & hi.cmpge(boxes[j].0)).all() {
+                continue;
+            }
+            let d = m
+                .mesh
+                .positions
+                .iter()
+                .flat_map(|p| o.mesh.positions.iter().map(move |q| p.distance_squared(*q)))
+                .fold(f32::INFINITY, f32::min)
+                .sqrt();
+            if d <= reach {
+                muscles.push((d, j));
+            }
+        }
+        muscles.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut bones: Vec<(f32, usize)> = Vec::new();
+        for (b, t) in bone_targets.iter().enumerate() {
+            let (Some(t), Some((blo, bhi))) = (t, bone_boxes[b]) else {
+                continue;
+            };
+            if !(lo.cmple(bhi) & hi.cmpge(blo)).all() {
+                continue;
+            }
+            let d = m
+                .mesh
+                .positions
+                .iter()
+                .filter_map(|&p| t.closest_within(p, None, reach))
+                .map(|h| h.distance)
+                .fold(f32::INFINITY, f32::min);
+            if d <= reach {
+                bones.push((d, b));
+            }
+        }
+        bones.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut list: Vec<String> = bones
+            .iter()
+            .take(options.bone_targets)
+            .map(|&(_, b)| {
+                used_bones[b] = true;
+                model.bodies[b].name.clone()
+            })
+            .collect();
+        list.extend(
+            muscles
+                .iter()
+                .take(options.muscle_targets)
+                .map(|&(_, j)| built[j].name.clone()),
+        );
+        targets.push(list);
+    }
+    for m in &built {
+        for b in m.bodies.iter().flatten() {
+            used_bones[*b] = true;
+        }
+    }
+    for t in targets.iter().flatten() {
+        if let Some(b) = model.body_index(t) {
+            used_bones[b] = true;
+        }
+    }
+
+    // Files.
+    let out_dir = scene_dir.join(mesh_dir);
+    std::fs::create_dir_all(&out_dir).map_err(|source| ImportError::Io {
+        file: out_dir.clone(),
+        source,
+    })?;
+    let mut files = Vec::new();
+    let mut bones = Vec::with_capacity(model.bodies.len());
+    for (b, body) in model.bodies.iter().enumerate() {
+        let wanted = options.bone_meshes == BoneMeshes::All || used_bones[b];
+        let shape = match (&geometry[b], wanted) {
+            (Some(g), true) => {
+                let rel = mesh_dir.join(format!("{}.obj", body.name));
+                let polys: Vec<Vec<u32>> = g.triangles.iter().map(|t| t.to_vec()).collect();
+                write_obj(&scene_dir.join(&rel), &g.positions, &polys)?;
+                files.push(scene_dir.join(&rel));
+                Some(BoneShape::Mesh {
+                    file: path_string(&rel),
+                    scale: 1.0,
+                })
+            }
+            _ => None,
+        };
+        bones.push(BoneSpec {
+            name: body.name.clone(),
+            shape,
+            body: Some(body.name.clone()),
+            ..Default::default()
+        });
+    }
+    let mut muscles = Vec::with_capacity(built.len());
+    for (m, targets) in built.into_iter().zip(targets) {
+        let rel = mesh_dir.join(format!("{}.obj", m.name));
+        let polys: Vec<Vec<u32>> = m.mesh.polygons().map(<[u32]>::to_vec).collect();
+        write_obj(&scene_dir.join(&rel), &m.mesh.positions, &polys)?;
+        files.push(scene_dir.join(&rel));
+        let mut attachments = Vec::new();
+        for (end, body) in m.bodies.iter().enumerate() {
+            let bone = body.map(|b| model.bodies[b].name.clone());
+            for &v in std::iter::once(&m.tips[end]).chain(&m.ends[end]) {
+                attachments.push(AttachmentSpec {
+                    bone: bone.clone(),
+                    vertex: Some(v),
+                    point: None,
+                });
+            }
+        }
+        muscles.push(MuscleSpec {
+            name: m.name,
+            mesh: MeshSource::File {
+                path: path_string(&rel),
+                triangulate: false,
+                scale: 1.0,
+            },
+            roots: Roots::Vertices(m.tips.to_vec()),
+            attachments,
+            targets,
+            params: options.params.clone(),
+            maps: VertexMaps {
+                fibers: Some(m.fibers),
+                ..Default::default()
+            },
+            ..Default::default()
+        });
+    }
+    Ok(Imported {
+        scene: Scene {
+            name: model
+                .file
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            frames: 600,
+            bones,
+            muscles,
+            skeleton: Some(skeleton),
+            ..Default::default()
+        },
+        files,
+        notes,
+    })
+}
+
+/// A user-supplied muscle mesh: roots at the vertices nearest the path's
+/// ends, those plus their neighbours held, fibres along the path.
+fn user_muscle(
+    name: &str,
+    file: &Path,
+    points: &[Vec3],
+    options: &ImportOptions,
+) -> Result<BuiltMuscle, ImportError> {
+    let mesh = load_mesh(file, &LoadOptions::default())?;
+    mesh.check_closed_manifold()?;
+    if points.len() < 2 {
+        return Err(ImportError::Path {
+            muscle: name.to_string(),
+            reason: format!("path has {} point(s); need at least 2", points.len()),
+        });
+    }
+    let tip = |p: Vec3| crate::muscle::nearest_vertex(&mesh.positions, p);
+    let tips = [tip(points[0]), tip(points[points.len() - 1])];
+    let ends = tips.map(|t| {
+        if options.attach_rings == 0 {
+            Vec::new()
+        } else {
+            mesh.neighbors_of(t as usize).to_vec()
+        }
+    });
+    // Direction of, and nearest point on, the path segment nearest to each vertex.
+    let (fibers, centers) = mesh
+        .positions
+        .iter()
+        .map(|&p| {
+            points
+                .windows(2)
+                .map(|w| {
+                    let d = w[1] - w[0];
+                    let t = ((p - w[0]).dot(d) / d.length_squared().max(1e-12)).clamp(0.0, 1.0);
+                    let q = w[0] + d * t;
+                    (q.distance_squared(p), d.normalize_or_zero(), q)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map_or((Vec3::X, p), |(_, d, q)| (d, q))
+        })
+        .unzip();
+    Ok(BuiltMuscle {
+        name: name.to_string(),
+        mesh,
+        fibers,
+        tips,
+        ends,
+        bodies: [None, None],
+        centers,
+    })
+}
+
+fn path_string(p: &Path) -> String {
+    p.to_string_lossy().replace('\\', "/")
+}
+
+/// Writes positions and polygons as a Wavefront OBJ.
+pub fn write_obj(
+    path: &Path,
+    positions: &[Vec3],
+    polygons: &[Vec<u32>],
+) -> Result<(), ImportError> {
+    let mut text = String::with_capacity(positions.len() * 32 + polygons.len() * 24);
+    text.push_str("# written by sinew\n");
+    for p in positions {
+        let _ = writeln!(text, "v {:.6} {:.6} {:.6}", p.x, p.y, p.z);
+    }
+    for poly in polygons {
+        text.push('f');
+        for i in poly {
+            let _ = write!(text, " {}", i + 1);
+        }
+        text.push('\n');
+    }
+    std::fs::write(path, text).map_err(|source| ImportError::Io {
+        file: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A model attached to the main one at a site.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct AttachModel {
+    /// MJCF file, relative to the recipe.
+    pub model: String,
+    /// Site of the main model the child's root bodies hang from.
+    pub site: String,
+    /// Reflect the child (right → left).
+    pub mirror: bool,
+}
+
+/// The same activation stack for several muscles.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MuscleDrive {
+    /// Muscle names.
+    pub muscles: Vec<String>,
+    /// Layers (see [`crate::sensor`]).
+    pub layers: Vec<ActivationLayer>,
+}
+
+/// Everything that makes a reference scene from an MJCF model, in one RON file:
+/// `sinew import-mjcf recipe.ron` regenerates the scene and its meshes.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ImportRecipe {
+    /// Scene name.
+    pub name: String,
+    /// Scene description.
+    pub description: String,
+    /// Frames a bake or benchmark runs.
+    pub frames: u32,
+    /// Main MJCF file, relative to the recipe.
+    pub model: String,
+    /// Models attached to it (composition, mirroring).
+    pub attach: Vec<AttachModel>,
+    /// Import options.
+    pub options: ImportOptions,
+    /// Solver settings of the scene.
+    pub settings: SolverSettings,
+    /// Joint animation.
+    pub motion: Vec<JointMotion>,
+    /// Sensors.
+    pub sensors: Vec<SensorSpec>,
+    /// Activation stacks.
+    pub drives: Vec<MuscleDrive>,
+    /// Constant activation curves `(muscle, curve)` for muscles not driven.
+    pub activation: Vec<(String, Curve)>,
+    /// Extra bones (e.g. a ground plane), with the muscles that target them.
+    pub extra_bones: Vec<(BoneSpec, Vec<String>)>,
+    /// Output scene file, relative to the recipe.
+    pub scene: String,
+    /// Output mesh directory, relative to the scene file.
+    pub meshes: String,
+}
+
+impl ImportRecipe {
+    /// Reads a recipe.
+    pub fn load(path: &Path) -> Result<Self, ImportError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        ron::from_str(&text).map_err(|e: ron::error::SpannedError| {
+            ImportError::Scene(crate::SceneError::Syntax {
+                file: path.to_path_buf(),
+                line: e.span.start.line,
+                column: e.span.start.col,
+                reason: e.code.to_string(),
+            })
+        })
+    }
+
+    /// Imports, builds and writes the scene; returns it with its path.
+    pub fn run(&self, recipe_path: &Path) -> Result<(Imported, PathBuf), ImportError> {
+        let base = recipe_path.parent().unwrap_or(Path::new("."));
+        let mut model = MjcfModel::load(&base.join(&self.model))?;
+        for a in &self.attach {
+            let child = MjcfModel::load(&base.join(&a.model))?;
+            model.attach(&child, &a.site, a.mirror)?;
+        }
+        let scene_path = base.join(&self.scene);
+        let scene_dir = scene_path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        let mut options = self.options.clone();
+        for u in &mut options.user_meshes {
+            u.file = path_string(&base.join(&u.file));
+        }
+        let mut imported = import_model(&model, &options, &scene_dir, Path::new(&self.meshes))?;
+        let scene = &mut imported.scene;
+        scene.name = self.name.clone();
+        scene.description = self.description.clone();
+        scene.frames = self.frames;
+        scene.settings = self.settings.clone();
+        if let Some(sk) = &mut scene.skeleton {
+            sk.motion = self.motion.clone();
+        }
+        scene.sensors = self.sensors.clone();
+        let muscle = |name: &str, scene: &mut Scene| -> Result<usize, ImportError> {
+            scene
+                .muscles
+                .iter()
+                .position(|m| m.name == name)
+                .ok_or_else(|| ImportError::UnknownName {
+                    context: format!("recipe {}", recipe_path.display()),
+                    kind: "muscle",
+                    name: name.to_string(),
+                })
+        };
+        for d in &self.drives {
+            for name in &d.muscles {
+                let i = muscle(name, scene)?;
+                scene.muscles[i].drive = d.layers.clone();
+            }
+        }
+        for (name, curve) in &self.activation {
+            let i = muscle(name, scene)?;
+            scene.muscles[i].activation = Some(curve.clone());
+        }
+        for (bone, users) in &self.extra_bones {
+            scene.bones.push(bone.clone());
+            for name in users {
+                let i = muscle(name, scene)?;
+                scene.muscles[i].targets.push(bone.name.clone());
+            }
+        }
+        // Check it loads before writing it.
+        scene.instantiate(&scene_dir)?;
+        scene.save(&scene_path)?;
+        imported.files.push(scene_path.clone());
+        Ok((imported, scene_path))
+    }
+}
