@@ -59,8 +59,16 @@ pub fn run(scene: &str, frames: Option<u32>, every: u32, depth_mm: f32) -> Resul
     )?;
     writeln!(
         out,
-        "{:<12}{:>9}{:>9}{:>9}{:>9}{:>11}{:>10}",
-        "muscle", "vol min", "vol max", "allowed", "act max", "section×", "at act"
+        "{:<12}{:>9}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}",
+        "muscle",
+        "vol min",
+        "vol max",
+        "allowed",
+        "act max",
+        "section×",
+        "at act",
+        "attach mm",
+        "inside %"
     )?;
     let mut within = true;
     for (i, m) in solver.muscles().iter().enumerate() {
@@ -71,14 +79,16 @@ pub fn run(scene: &str, frames: Option<u32>, every: u32, depth_mm: f32) -> Resul
         let (a, section) = metrics.section_at_peak[i];
         writeln!(
             out,
-            "{:<12}{:>9.3}{:>9.3}{:>9}{:>9.2}{:>11.3}{:>10.2}",
+            "{:<12}{:>9.3}{:>9.3}{:>9}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}",
             m.name,
             lo,
             hi,
             format!("{:.2}{}", gain * 1.05, if ok { "" } else { "!" }),
             metrics.activation_max[i],
             section,
-            a
+            a,
+            metrics.muscle_attachment_max[i] * 1e3,
+            metrics.muscle_penetration_max[i] * 100.0
         )?;
     }
     writeln!(

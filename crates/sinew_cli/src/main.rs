@@ -4,6 +4,7 @@ mod bench;
 mod check;
 mod commands;
 mod import;
+mod render;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -97,6 +98,30 @@ enum Command {
         #[arg(long, default_value_t = 2.0)]
         depth_mm: f32,
     },
+    /// Simulate to a frame and draw bones and muscles into a PNG (software
+    /// rasteriser: no GPU or window needed).
+    Render {
+        /// Scene file or built-in name.
+        scene: String,
+        /// Frame to draw (frames simulated first).
+        #[arg(long, default_value_t = 0)]
+        frame: u32,
+        /// Camera direction.
+        #[arg(long, value_enum, default_value = "front")]
+        view: render::View,
+        /// Image width in pixels.
+        #[arg(long, default_value_t = 900)]
+        width: u32,
+        /// Image height in pixels.
+        #[arg(long, default_value_t = 900)]
+        height: u32,
+        /// Leave the bones out.
+        #[arg(long)]
+        no_bones: bool,
+        /// Output PNG.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Write a built-in scene as RON.
     Scene {
         /// Built-in name.
@@ -121,6 +146,15 @@ fn main() -> ExitCode {
             timer_overhead,
         } => bench::run(&scene, frames, runs, iterations, timer_overhead),
         Command::Scene { name, out } => commands::write_builtin(&name, &out),
+        Command::Render {
+            scene,
+            frame,
+            view,
+            width,
+            height,
+            no_bones,
+            out,
+        } => render::run(&scene, frame, view, (width, height), !no_bones, &out),
         Command::Check {
             scene,
             frames,

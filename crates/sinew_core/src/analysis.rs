@@ -42,17 +42,47 @@ pub fn cross_section_area(
     (twice.abs() * 0.5) as f32
 }
 
-/// A muscle's belly cross-section: the plane through the centroid of its
-/// surface, normal to the line between its first two roots (the tendon tips).
+/// A muscle's belly cross-section: the plane through the internal point
+/// farthest (in rings) from the roots — the middle of the belly for roots at
+/// both tendon tips — normal to the medulla there (the line between that
+/// point's branch neighbours), in the current pose. Without an internal
+/// structure: the plane through the surface centroid normal to the line
+/// between the first two roots.
 pub fn belly_cross_section(solver: &Solver, muscle: usize) -> f32 {
     let m = &solver.muscles()[muscle];
     let surface = &m.x[..m.surface_count];
-    let centroid = surface.iter().copied().sum::<Vec3>() / surface.len().max(1) as f32;
-    let axis = match m.roots.as_slice() {
-        [a, b, ..] => m.x[*b as usize] - m.x[*a as usize],
-        _ => Vec3::X,
+    let s = &m.structure;
+    let belly = (0..s.points.len()).max_by_key(|&k| (s.levels[k], std::cmp::Reverse(k)));
+    let (point, axis) = match belly {
+        Some(k) => {
+            let at = |i: u32| m.x[m.surface_count + i as usize];
+            let neighbours: Vec<u32> = s
+                .branches
+                .iter()
+                .filter_map(|&[a, b]| {
+                    (a as usize == k)
+                        .then_some(b)
+                        .or((b as usize == k).then_some(a))
+                })
+                .collect();
+            let here = at(k as u32);
+            let axis = match neighbours.as_slice() {
+                [a, b, ..] => at(*b) - at(*a),
+                [a] => here - at(*a),
+                [] => Vec3::X,
+            };
+            (here, axis)
+        }
+        None => {
+            let centroid = surface.iter().copied().sum::<Vec3>() / surface.len().max(1) as f32;
+            let axis = match m.roots.as_slice() {
+                [a, b, ..] => m.x[*b as usize] - m.x[*a as usize],
+                _ => Vec3::X,
+            };
+            (centroid, axis)
+        }
     };
-    cross_section_area(surface, &m.mesh.triangles, centroid, axis)
+    cross_section_area(surface, &m.mesh.triangles, point, axis)
 }
 
 /// Distance of every attached vertex from its bone point.
@@ -67,27 +97,29 @@ pub fn attachment_errors(solver: &Solver) -> impl Iterator<Item = f32> + '_ {
     })
 }
 
-/// Surface vertices deeper than `depth` inside any bone mesh, and the total.
+/// Per muscle, its surface vertices deeper than `depth` inside any bone mesh.
 /// The closest-point test proposes, the winding number confirms.
-pub fn penetrating_vertices(solver: &Solver, depth: f32) -> (usize, usize) {
+pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
     let bones: Vec<_> = solver
         .targets()
         .iter()
         .filter(|t| matches!(t.source, TargetSource::Bone(_)))
         .collect();
-    let mut inside = 0;
-    let mut total = 0;
-    for m in solver.muscles() {
-        for &x in &m.x[..m.surface_count] {
-            total += 1;
-            let deep = bones.iter().any(|b| {
-                b.closest_within(x, None, f32::INFINITY)
-                    .is_some_and(|h| h.signed_distance < -depth && b.contains(x))
-            });
-            inside += usize::from(deep);
-        }
-    }
-    (inside, total)
+    solver
+        .muscles()
+        .iter()
+        .map(|m| {
+            m.x[..m.surface_count]
+                .iter()
+                .filter(|&&x| {
+                    bones.iter().any(|b| {
+                        b.closest_within(x, None, f32::INFINITY)
+                            .is_some_and(|h| h.signed_distance < -depth && b.contains(x))
+                    })
+                })
+                .count()
+        })
+        .collect()
 }
 
 /// Running figures over a simulation, one [`RunMetrics::observe`] per frame.
@@ -119,6 +151,12 @@ pub struct RunMetrics {
     pub section_at_peak: Vec<(f32, f32)>,
     /// Check penetration every this many frames (1 = every frame).
     pub penetration_every: u32,
+    /// Per muscle: largest attachment error. Units: m.
+    pub muscle_attachment_max: Vec<f32>,
+    /// Per muscle: largest share of its vertices deeper than `depth` in a bone.
+    pub muscle_penetration_max: Vec<f32>,
+    /// Muscle of each attachment, in [`attachment_errors`] order.
+    attachment_owner: Vec<usize>,
 }
 
 impl RunMetrics {
@@ -139,6 +177,14 @@ impl RunMetrics {
             rest_section: (0..n).map(|m| belly_cross_section(solver, m)).collect(),
             section_at_peak: vec![(0.0, 1.0); n],
             penetration_every: 1,
+            muscle_attachment_max: vec![0.0; n],
+            muscle_penetration_max: vec![0.0; n],
+            attachment_owner: solver
+                .muscles()
+                .iter()
+                .enumerate()
+                .flat_map(|(i, m)| std::iter::repeat_n(i, m.attachments.len()))
+                .collect(),
         }
     }
 
@@ -156,17 +202,28 @@ impl RunMetrics {
         if !finite {
             return;
         }
-        for e in attachment_errors(solver) {
+        for (i, e) in attachment_errors(solver).enumerate() {
             self.attachment_error_sum += f64::from(e);
             self.attachment_samples += 1;
             self.attachment_error_max = self.attachment_error_max.max(e);
+            let m = self.attachment_owner[i];
+            self.muscle_attachment_max[m] = self.muscle_attachment_max[m].max(e);
         }
         if frame.is_multiple_of(self.penetration_every.max(1)) {
-            let (inside, total) = penetrating_vertices(solver, self.depth);
-            let share = inside as f32 / total.max(1) as f32;
+            let inside = penetrating_vertices(solver, self.depth);
+            let total: usize = solver.muscles().iter().map(|m| m.surface_count).sum();
+            let share = inside.iter().sum::<usize>() as f32 / total.max(1) as f32;
             if share > self.penetration_max {
                 self.penetration_max = share;
                 self.penetration_frame = frame;
+            }
+            for ((worst, &n), m) in self
+                .muscle_penetration_max
+                .iter_mut()
+                .zip(&inside)
+                .zip(solver.muscles())
+            {
+                *worst = worst.max(n as f32 / m.surface_count.max(1) as f32);
             }
         }
         for (i, m) in solver.muscles().iter().enumerate() {

@@ -7,6 +7,11 @@
 //! inside but outside at rest:   C = s − d0,        ∇C = n_c   (push back out)
 //! Contact mode: C ≥ 0 only (collision), λ clamped to ≥ 0
 //! ```
+//!
+//! Beyond the thesis: a vertex found inside a *rigid* target (a bone) that it
+//! was outside of at rest is first put back on the surface with a plain,
+//! non-compliant position projection (bones do not give way), then the
+//! compliant gap equality acts as usual.
 
 use super::delta_lambda;
 use glam::Vec3;
@@ -45,6 +50,8 @@ pub struct SlidingBatch {
     pub mode: SlidingMode,
     /// Number of targets of the muscle.
     pub targets: usize,
+    /// Per target slot: a rigid bone (contact with it is not compliant).
+    pub rigid: Vec<bool>,
 }
 
 impl SlidingBatch {
@@ -87,6 +94,14 @@ impl SlidingBatch {
                 continue;
             }
             let k = self.particle[i] as usize;
+            let t = self.target[i];
+            if t != u32::MAX && w[k] > 0.0 && self.rigid.get(t as usize) == Some(&true) {
+                let slot = i * self.targets + t as usize;
+                let s = self.normal[i].dot(p[k] - self.point[i]);
+                if s < 0.0 && self.rest_outside[slot] {
+                    p[k] -= self.normal[i] * s;
+                }
+            }
             let Some((c, g)) = self.value_and_gradient(i, p[k]) else {
                 continue;
             };

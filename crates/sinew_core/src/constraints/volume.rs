@@ -172,8 +172,16 @@ impl VolumeConstraint {
     pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         let alpha = self.compliance * inv_dt2;
         let scale = self.rest_volume.abs().max(f64::MIN_POSITIVE);
-        for _ in 0..Self::MAX_NEWTON_STEPS {
+        let mut limit = Self::MAX_NEWTON_STEPS;
+        let mut step = 0;
+        while step < limit {
+            step += 1;
             let (c, wg) = self.evaluate(p, w);
+            if (c / scale).abs() > Self::FAR {
+                // Far from the target (e.g. after contacts moved many
+                // vertices): keep stepping until close.
+                limit = Self::MAX_NEWTON_STEPS_FAR;
+            }
             let dl = delta_lambda(c as f32, self.lambda, wg as f32, alpha);
             if dl == 0.0 {
                 break;
@@ -192,4 +200,12 @@ impl VolumeConstraint {
     /// the volume 29 times per frame, with two 20, and the T1 figures did not
     /// change.
     pub const MAX_NEWTON_STEPS: usize = 2;
+
+    /// Relative violation above which up to
+    /// [`VolumeConstraint::MAX_NEWTON_STEPS_FAR`] steps are taken.
+    pub const FAR: f64 = 0.02;
+
+    /// Upper bound on Newton steps when the violation is above
+    /// [`VolumeConstraint::FAR`].
+    pub const MAX_NEWTON_STEPS_FAR: usize = 8;
 }

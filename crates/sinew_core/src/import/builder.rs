@@ -198,6 +198,20 @@ pub fn sweep_path(
     force: Option<f32>,
     options: &SweepOptions,
 ) -> Result<SweptMuscle, ImportError> {
+    sweep_path_clear_of(name, points, force, options, &|c, _| c)
+}
+
+/// [`sweep_path`] with the centre line moved by `clear(centre, radius)`
+/// before the rings are placed, e.g. out of bones: a path through a bone
+/// (a tendon that wraps around it in the source model) then runs beside it
+/// and the muscle does not enclose the bone.
+pub fn sweep_path_clear_of(
+    name: &str,
+    points: &[Vec3],
+    force: Option<f32>,
+    options: &SweepOptions,
+    clear: &dyn Fn(Vec3, f32) -> Vec3,
+) -> Result<SweptMuscle, ImportError> {
     let err = |reason: String| ImportError::Path {
         muscle: name.to_string(),
         reason,
@@ -222,7 +236,16 @@ pub fn sweep_path(
     let fractions: Vec<f32> = (0..rings + 2)
         .map(|i| i as f32 / (rings + 1) as f32)
         .collect();
-    let (centers, tangents, length) = resample(&polyline, &fractions);
+    let (mut centers, mut tangents, length) = resample(&polyline, &fractions);
+    for (i, c) in centers.iter_mut().enumerate().skip(1).take(rings) {
+        *c = clear(*c, spindle(fractions[i], belly, tendon));
+    }
+    // Tangents of the (possibly moved) centre line, by central differences.
+    for i in 1..=rings {
+        tangents[i] = (centers[i + 1] - centers[i - 1])
+            .try_normalize()
+            .unwrap_or(tangents[i]);
+    }
     if length < 4.0 * tendon {
         return Err(err(format!(
             "path is {length:.4} m long, too short for a muscle of radius {belly:.4} m"

@@ -23,7 +23,7 @@ use crate::sensor::{ActivationLayer, SensorSpec};
 use crate::skeleton::{BodySpec, JointMotion, Skeleton, SkeletonRig};
 use crate::solver::SolverSettings;
 use crate::target::{TargetSource, TargetSurface};
-use builder::{SweepOptions, push_out_of_bones, sweep_path};
+use builder::{SweepOptions, push_out_of_bones, sweep_path_clear_of};
 use glam::{Affine3A, Quat, Vec3};
 use mjcf::MjcfModel;
 use serde::{Deserialize, Serialize};
@@ -366,7 +366,21 @@ pub fn import_model(
             if let Some((_, r)) = options.radii.iter().find(|(m, _)| *m == name) {
                 sweep.radius = Some(*r);
             }
-            let s = sweep_path(&name, &points, actuator.force, &sweep)?;
+            // Bones near the path: its centre line is kept a radius away.
+            let (plo, phi) = crate::mesh::bounds_of(&points);
+            let reach = Vec3::splat(sweep.belly_radius(actuator.force));
+            let near: Vec<&TargetSurface> = bone_targets
+                .iter()
+                .zip(&bone_boxes)
+                .filter_map(|(t, bx)| {
+                    let (blo, bhi) = (*bx)?;
+                    ((plo - reach).cmple(bhi) & (phi + reach).cmpge(blo))
+                        .all()
+                        .then_some(t.as_ref()?)
+                })
+                .collect();
+            let clear = |c: Vec3, r: f32| clear_of_bones(c, r + options.push_out_margin, &near);
+            let s = sweep_path_clear_of(&name, &points, actuator.force, &sweep, &clear)?;
             let take = options.attach_rings.min(s.rings.len() as u32 / 2) as usize;
             let first: Vec<u32> = s.rings[..take].iter().flatten().copied().collect();
             let last: Vec<u32> = s.rings[s.rings.len() - take..]
@@ -385,7 +399,8 @@ pub fn import_model(
             }
         };
         m.bodies = bodies;
-        // Push the surface out of nearby bones (not the tips or held rings).
+        // Push the surface out of nearby bones (tips and held rings too: they
+        // are attached where they end up).
         let (lo, hi) = crate::mesh::bounds_of(&m.mesh.positions);
         let near: Vec<&TargetSurface> = bone_targets
             .iter()
@@ -396,15 +411,13 @@ pub fn import_model(
                 overlap.then_some(t.as_ref()?)
             })
             .collect();
-        let mut keep: Vec<u32> = m.tips.to_vec();
-        keep.extend(m.ends.iter().flatten());
         let mut positions = m.mesh.positions.clone();
         let moved = push_out_of_bones(
             &mut positions,
             &m.centers,
             &near,
             options.push_out_margin,
-            &keep,
+            &[],
         );
         if moved > 0 {
             notes.push(format!("{name}: {moved} vertices pushed out of bones"));
@@ -577,6 +590,28 @@ pub fn import_model(
         files,
         notes,
     })
+}
+
+/// Moves a centre-line point out of `bones` (and at least `radius` from their
+/// surfaces), along the direction away from the nearest surface point.
+fn clear_of_bones(mut c: Vec3, radius: f32, bones: &[&TargetSurface]) -> Vec3 {
+    for _ in 0..3 {
+        let mut moved = false;
+        for b in bones {
+            let Some(hit) = b.closest_within(c, None, radius) else {
+                continue;
+            };
+            let inside = b.contains(c);
+            let away = (c - hit.point).try_normalize().unwrap_or(hit.normal);
+            let out = if inside { -away } else { away };
+            c = hit.point + out * radius;
+            moved = true;
+        }
+        if !moved {
+            break;
+        }
+    }
+    c
 }
 
 /// A user-supplied muscle mesh: roots at the vertices nearest the path's

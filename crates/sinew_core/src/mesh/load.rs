@@ -1,4 +1,5 @@
-//! OBJ (`tobj`) and STL (`stl_io`) loading into [`SurfaceMesh`].
+//! OBJ (our own order-preserving reader) and STL (`stl_io`) loading into
+//! [`SurfaceMesh`].
 
 use super::{SurfaceMesh, bounds_of, weld_positions};
 use crate::error::MeshError;
@@ -102,44 +103,75 @@ pub(crate) fn from_raw(
 
 type Raw = (Vec<Vec3>, Vec<Vec<u32>>);
 
+/// Reads the vertices and faces of a Wavefront OBJ, keeping the file's vertex
+/// order (scenes refer to vertices by index: roots, attachments, maps).
+/// `v x y z [w]` and `f` with `v`, `v/vt`, `v//vn` or `v/vt/vn` corners,
+/// 1-based or negative (relative) indices; other statements are ignored.
 fn read_obj(path: &Path) -> Result<Raw, MeshError> {
     let text = std::fs::read_to_string(path).map_err(|source| MeshError::Io {
         file: path.to_path_buf(),
         source,
     })?;
-    let opts = tobj::LoadOptions {
-        single_index: false,
-        triangulate: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |_| {
-        Ok((Vec::new(), Default::default()))
-    })
-    .map_err(|e| MeshError::Parse {
+    let parse = |line: usize, reason: String| MeshError::Parse {
         file: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
+        reason: format!("line {line}: {reason}"),
+    };
     let mut positions = Vec::new();
     let mut polygons = Vec::new();
-    for model in models {
-        let m = model.mesh;
-        let base = positions.len() as u32;
-        positions.extend(
-            m.positions
-                .chunks_exact(3)
-                .map(|c| Vec3::new(c[0], c[1], c[2])),
-        );
-        let mut start = 0usize;
-        let arities: Vec<u32> = if m.face_arities.is_empty() {
-            vec![3; m.indices.len() / 3]
-        } else {
-            m.face_arities.clone()
-        };
-        for arity in arities {
-            let end = start + arity as usize;
-            polygons.push(m.indices[start..end].iter().map(|&i| i + base).collect());
-            start = end;
+    for (n, raw) in text.lines().enumerate() {
+        let line = n + 1;
+        let content = raw.split('#').next().unwrap_or("");
+        let mut words = content.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let mut c = [0.0f32; 3];
+                for (k, slot) in c.iter_mut().enumerate() {
+                    let word = words.next().ok_or_else(|| {
+                        parse(line, format!("vertex has {k} coordinates, needs 3"))
+                    })?;
+                    *slot = word
+                        .parse()
+                        .map_err(|_| parse(line, format!("'{word}' is not a number")))?;
+                }
+                positions.push(Vec3::from_array(c));
+            }
+            Some("f") => {
+                let mut face = Vec::new();
+                for word in words {
+                    let index = word.split('/').next().unwrap_or("");
+                    let i: i64 = index
+                        .parse()
+                        .map_err(|_| parse(line, format!("'{word}' is not a vertex index")))?;
+                    let resolved = match i {
+                        0 => {
+                            return Err(parse(
+                                line,
+                                "vertex index 0 (OBJ indices start at 1)".into(),
+                            ));
+                        }
+                        i if i > 0 => i - 1,
+                        i => positions.len() as i64 + i,
+                    };
+                    if resolved < 0 {
+                        return Err(parse(
+                            line,
+                            format!("relative index {i} points before the first vertex"),
+                        ));
+                    }
+                    face.push(
+                        u32::try_from(resolved)
+                            .map_err(|_| parse(line, format!("index {i} is too large")))?,
+                    );
+                }
+                if face.len() < 3 {
+                    return Err(parse(
+                        line,
+                        format!("face has {} vertices, needs 3", face.len()),
+                    ));
+                }
+                polygons.push(face);
+            }
+            _ => {}
         }
     }
     Ok((positions, polygons))
@@ -166,4 +198,30 @@ fn read_stl(path: &Path) -> Result<Raw, MeshError> {
     }
     // STL stores every triangle separately: welding is what makes it a surface.
     Ok((positions, polygons))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn obj_keeps_the_file_vertex_order() {
+        // Faces list vertex 4 first: a reader that renumbers by first use
+        // would move it to index 0 and break index-based roots/attachments.
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 4 3 2\nf 1 2 3\nf 1 4 2\nf 1 3 4\n";
+        let path = std::env::temp_dir().join(format!("sinew_order_{}.obj", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        let mesh = load_mesh(&path, &LoadOptions::default()).unwrap();
+        assert_eq!(mesh.positions[0], Vec3::ZERO);
+        assert_eq!(mesh.positions[3], Vec3::Z);
+        assert_eq!(mesh.polygons().next().unwrap(), &[3, 2, 1]);
+        // Negative (relative) indices and v/vt/vn corners.
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3/1/1 -2//1 -1/2\n").unwrap();
+        let mesh = load_mesh(&path, &LoadOptions::default()).unwrap();
+        assert_eq!(mesh.polygons().next().unwrap(), &[0, 1, 2]);
+        std::fs::write(&path, "v 0 0 0\nv 1 0 x\nf 1 2 3\n").unwrap();
+        let e = load_mesh(&path, &LoadOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("line 2"), "{e}");
+        std::fs::remove_file(&path).ok();
+    }
 }

@@ -204,8 +204,12 @@ pub struct Muscle {
     pub p: Vec<Vec3>,
     /// Velocities. Units: m/s.
     pub v: Vec<Vec3>,
-    /// Inverse masses. Units: 1/kg.
+    /// Inverse masses. Units: 1/kg. Zero for particles held by an attachment
+    /// of zero compliance: those follow their bone kinematically.
     pub w: Vec<f32>,
+    /// Inverse masses before pinning (restored when an attachment's
+    /// compliance becomes positive).
+    pub free_w: Vec<f32>,
     /// Start-frame positions.
     pub rest: Vec<Vec3>,
     /// Number of surface vertices (particles `0..surface_count`).
@@ -361,6 +365,7 @@ impl Muscle {
             x: rest.clone(),
             p: rest.clone(),
             v: vec![Vec3::ZERO; nparticles],
+            free_w: w.clone(),
             w,
             rest,
             surface_count: n,
@@ -376,6 +381,7 @@ impl Muscle {
         for (a, v) in attachments.iter().zip(attach_vertices) {
             muscle.add_attachment(a.bone, v, &bone_transform);
         }
+        muscle.pin_attachments();
         muscle.update_activation();
         Ok(muscle)
     }
@@ -527,7 +533,48 @@ impl Muscle {
         if let Some(v) = &mut k.volume {
             v.compliance = p.volume;
         }
+        self.pin_attachments();
         self.relink_weights();
+    }
+
+    /// Gives particles held with zero compliance an inverse mass of 0 (they
+    /// move with their bone, see [`Muscle::place_pinned`]) and restores the
+    /// others' masses. A hard attachment then holds exactly whatever the other
+    /// constraints do after it in the iteration.
+    pub fn pin_attachments(&mut self) {
+        for a in &self.attachments {
+            let v = a.vertex as usize;
+            self.w[v] = self.free_w[v];
+            if let Some(ip) = a.internal_particle {
+                self.w[ip as usize] = self.free_w[ip as usize];
+            }
+        }
+        for a in &self.attachments {
+            if self.params.compliance.attach == 0.0 {
+                self.w[a.vertex as usize] = 0.0;
+            }
+            if let Some(ip) = a.internal_particle
+                && self.params.compliance.branch_attach == 0.0
+            {
+                self.w[ip as usize] = 0.0;
+            }
+        }
+    }
+
+    /// Moves pinned particles' predictions to their attachment goals.
+    pub fn place_pinned(&mut self) {
+        let mut k = 0;
+        for (i, a) in self.attachments.iter().enumerate() {
+            if self.w[a.vertex as usize] == 0.0 {
+                self.p[a.vertex as usize] = self.constraints.attach.goal[i];
+            }
+            if let Some(ip) = a.internal_particle {
+                if self.w[ip as usize] == 0.0 {
+                    self.p[ip as usize] = self.constraints.branch_attach.goal[k];
+                }
+                k += 1;
+            }
+        }
     }
 
     /// Per-vertex connection weights `(sliding, soft, hard)`, normalised if asked.

@@ -610,6 +610,7 @@ impl Solver {
             let mut free_momentum = Vec::new();
             for m in &mut self.muscles {
                 integrate(m, gravity, h, damping_exp);
+                m.place_pinned();
                 m.constraints.clear_lambdas();
                 free_momentum.push(momentum::is_free(m).then(|| momentum::measure(m)));
             }
@@ -631,7 +632,19 @@ impl Solver {
                     }
                     closest_data(m, &self.targets, search);
                     clock.lap(&mut timings.closest_data);
-                    project(m, &self.settings.projection_order, inv_h2);
+                    // Bone contacts go after every other constraint but a
+                    // trailing Volume, which keeps the volume exact while
+                    // moving vertices far less than the contacts did.
+                    let order = &self.settings.projection_order;
+                    let (body, volume_last) = match order.split_last() {
+                        Some((ConstraintKind::Volume, rest)) => (rest, true),
+                        _ => (order.as_slice(), false),
+                    };
+                    project(m, body, inv_h2);
+                    bone_contacts(m, &self.targets);
+                    if volume_last {
+                        project(m, &[ConstraintKind::Volume], inv_h2);
+                    }
                     clock.lap(&mut timings.project);
                 }
             }
@@ -723,7 +736,10 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
     for i in 0..c.sliding.len() {
         let v = c.sliding.particle[i] as usize;
         let q = m.p[v];
-        let mut best: Option<(f32, u32)> = None;
+        // (rank, distance, slot): the rank is the distance, except that a
+        // vertex inside a rigid target (a bone) ranks it first, so Sliding
+        // pushes it out of the bone even when a neighbouring muscle is nearer.
+        let mut best: Option<(f32, f32, u32)> = None;
         // Last iteration's target first; every other search is bounded by the
         // best distance so far (Sliding only needs the closest target). The
         // closest target is re-chosen in the first iteration of a frame; later
@@ -739,7 +755,16 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
             let cell = &mut m.closest[i * nt + slot];
             let warm = cell.map(|h| h.triangle);
             let target = &targets[m.target_ids[slot]];
-            if best.is_some_and(|(d, _)| target.lower_bound(q) >= d) {
+            let lower = target.lower_bound(q);
+            // Inside a bone's box the vertex may be inside the bone: search it
+            // whatever the other targets' distances.
+            let may_be_inside = lower == 0.0 && !target.is_deforming();
+            let bound = match best {
+                Some((rank, d, _)) if rank >= 0.0 && !may_be_inside => d,
+                Some((rank, _, _)) if rank < 0.0 && !may_be_inside => continue,
+                _ => f32::MAX,
+            };
+            if lower >= bound {
                 continue;
             }
             let local = warm.filter(|_| !full).and_then(|t| {
@@ -751,22 +776,25 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
             });
             let hit = match local {
                 Some(hit) => Some(hit),
-                None => {
-                    let bound = best.map_or(f32::MAX, |(d, _)| d);
-                    target.closest_within(q, warm, bound)
-                }
+                None => target.closest_within(q, warm, bound),
             };
             if hit.is_some() {
                 *cell = hit;
             }
-            if let Some(hit) = hit
-                && best.is_none_or(|(d, _)| hit.distance < d)
-            {
-                best = Some((hit.distance, slot as u32));
+            if let Some(hit) = hit {
+                let inside_bone = hit.signed_distance < 0.0 && !target.is_deforming();
+                let rank = if inside_bone {
+                    -hit.distance - 1.0
+                } else {
+                    hit.distance
+                };
+                if best.is_none_or(|(r, _, _)| rank < r) {
+                    best = Some((rank, hit.distance, slot as u32));
+                }
             }
         }
         match best {
-            Some((_, slot)) => {
+            Some((_, _, slot)) => {
                 let hit = m.closest[i * nt + slot as usize].expect("chosen hit");
                 c.sliding.point[i] = hit.point;
                 c.sliding.normal[i] = hit.normal;
@@ -788,6 +816,43 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
         let t = &targets[m.target_ids[a.target as usize]];
         if moved(t) {
             c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+        }
+    }
+}
+
+/// In each iteration, after the projections (before a trailing Volume), puts
+/// every surface vertex that ended up inside one of its muscle's bone targets (and was outside it at rest)
+/// back on the bone's surface: bones do not give way, whatever the soft
+/// constraints solved after Sliding did. Each bone is checked only for
+/// vertices inside its bounding box, from the last closest triangle (a walk).
+pub(crate) fn bone_contacts(m: &mut Muscle, targets: &[TargetSurface]) {
+    let nt = m.target_ids.len();
+    let c = &m.constraints.sliding;
+    if nt == 0 || !c.rigid.iter().any(|&r| r) {
+        return;
+    }
+    for i in 0..c.len() {
+        let v = c.particle[i] as usize;
+        if m.w[v] == 0.0 {
+            continue;
+        }
+        for slot in (0..nt).filter(|&s| c.rigid[s]) {
+            let target = &targets[m.target_ids[slot]];
+            let q = m.p[v];
+            if !c.rest_outside[i * nt + slot] || target.lower_bound(q) > 0.0 {
+                continue;
+            }
+            let cell = &mut m.closest[i * nt + slot];
+            let hit = match cell.map(|h| h.triangle) {
+                Some(t) => target.walk(q, t),
+                None => target.closest_within(q, None, f32::INFINITY),
+            };
+            if let Some(hit) = hit {
+                *cell = Some(hit);
+                if hit.signed_distance < 0.0 {
+                    m.p[v] -= hit.normal * hit.signed_distance;
+                }
+            }
         }
     }
 }
@@ -831,6 +896,11 @@ fn link_muscle(m: &mut Muscle, targets: &[TargetSurface]) {
     }
     c.sliding.targets = nt;
     c.sliding.mode = m.params.sliding_mode;
+    c.sliding.rigid = m
+        .target_ids
+        .iter()
+        .map(|&t| !targets[t].is_deforming() && matches!(targets[t].source, TargetSource::Bone(_)))
+        .collect();
     for v in 0..n {
         let q = m.x[v];
         let mut best: Option<(f32, u32, crate::target::ClosestHit)> = None;

@@ -98,6 +98,8 @@ fn one_projection_with_zero_compliance_satisfies_each_type() {
             _ => 3,
         });
         isolate(&mut m, kind, keep);
+        // Hard attachments pin their particles (w = 0); free them to test the kernel.
+        m.w = m.free_w.clone();
         let (before, scale) = value(&m, kind);
         assert!(
             before.abs() / scale > 1e-3,
@@ -275,4 +277,24 @@ fn a_free_muscle_keeps_zero_momentum() {
         assert!(linear.length() < 1e-4 * linear_scale, "linear {linear}");
         assert!(angular.length() < 1e-3 * angular_scale, "angular {angular}");
     }
+}
+
+#[test]
+fn hard_attachments_hold_exactly_while_the_muscle_hangs() {
+    let mut scene = crate::scene::builtin("P1").unwrap();
+    scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
+    for _ in 0..60 {
+        solver.step();
+    }
+    let worst = crate::analysis::attachment_errors(&solver).fold(0.0f32, f32::max);
+    assert!(worst < 1e-6, "attached vertex drifted {worst} m");
+    // The rest of the muscle did sag.
+    let m = &solver.muscles()[0];
+    let lowest = m.x.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let rest_lowest = m.rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    assert!(
+        lowest < rest_lowest - 1e-5,
+        "{lowest} vs rest {rest_lowest}"
+    );
 }

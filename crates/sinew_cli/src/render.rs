@@ -1,0 +1,222 @@
+//! `render`: a small software rasteriser (z-buffer, Lambert shading) that
+//! draws a scene's bones and muscles at a chosen frame into a PNG — no GPU,
+//! no window, so it runs in CI and over SSH.
+
+use crate::commands::load_solver;
+use sinew_core::Solver;
+use sinew_core::glam::{Mat3, Vec3};
+use sinew_core::target::TargetSource;
+use std::error::Error;
+use std::path::Path;
+use std::process::ExitCode;
+
+type Result<T> = std::result::Result<T, Box<dyn Error>>;
+
+/// Where the camera looks from.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum View {
+    /// From +Z (in front of a Y-up model facing +Z... or its side, depending on the model).
+    Front,
+    /// From +X.
+    Side,
+    /// From −X.
+    OtherSide,
+    /// From −Z.
+    Back,
+}
+
+impl View {
+    fn direction(self) -> Vec3 {
+        match self {
+            Self::Front => Vec3::Z,
+            Self::Side => Vec3::X,
+            Self::OtherSide => -Vec3::X,
+            Self::Back => -Vec3::Z,
+        }
+    }
+}
+
+/// One coloured triangle in world space.
+struct Tri {
+    p: [Vec3; 3],
+    color: [f32; 3],
+}
+
+fn collect(solver: &Solver, bones: bool) -> Vec<Tri> {
+    let mut tris = Vec::new();
+    if bones {
+        for t in solver.targets() {
+            if !matches!(t.source, TargetSource::Bone(_)) {
+                continue;
+            }
+            let world: Vec<Vec3> = t
+                .positions
+                .iter()
+                .map(|&p| t.transform.transform_point3(p))
+                .collect();
+            for tri in &t.triangles {
+                tris.push(Tri {
+                    p: tri.map(|i| world[i as usize]),
+                    color: [0.86, 0.83, 0.74],
+                });
+            }
+        }
+    }
+    for m in solver.muscles() {
+        // Relaxed muscle: dusty red; active: bright red.
+        let a = m.params.activation.clamp(0.0, 1.0);
+        let color = [0.55 + 0.4 * a, 0.22 - 0.1 * a, 0.2 - 0.08 * a];
+        for tri in &m.mesh.triangles {
+            tris.push(Tri {
+                p: tri.map(|i| m.x[i as usize]),
+                color,
+            });
+        }
+    }
+    tris
+}
+
+/// Renders the solver's current state. `focus` frames the muscles only.
+pub fn draw(solver: &Solver, view: View, width: u32, height: u32, bones: bool) -> Vec<u8> {
+    let tris = collect(solver, bones);
+    // Camera basis: looking along −dir, Y up.
+    let back = view.direction();
+    let right = Vec3::Y.cross(back).normalize();
+    let up = back.cross(right);
+    let to_camera = Mat3::from_cols(right, up, back).transpose();
+    // Frame the muscles (bones may extend far beyond them).
+    let muscle_points: Vec<Vec3> = solver
+        .muscles()
+        .iter()
+        .flat_map(|m| m.x[..m.surface_count].iter().copied())
+        .collect();
+    let framed = if muscle_points.is_empty() {
+        tris.iter().flat_map(|t| t.p).collect()
+    } else {
+        muscle_points
+    };
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for p in &framed {
+        let c = to_camera * *p;
+        lo = lo.min(c);
+        hi = hi.max(c);
+    }
+    let center = (lo + hi) * 0.5;
+    let extent = (hi - lo).truncate().max_element().max(1e-6) * 1.15;
+    let scale = width.min(height) as f32 / extent;
+    let (w, h) = (width as usize, height as usize);
+    let mut depth = vec![f32::NEG_INFINITY; w * h];
+    let mut rgb = vec![0u8; w * h * 3];
+    // Background: a soft vertical gradient.
+    for y in 0..h {
+        let t = y as f32 / h as f32;
+        let c = [
+            (34.0 + 20.0 * t) as u8,
+            (38.0 + 22.0 * t) as u8,
+            (46.0 + 26.0 * t) as u8,
+        ];
+        for x in 0..w {
+            rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&c);
+        }
+    }
+    let light = Vec3::new(0.4, 0.7, 0.6).normalize();
+    for t in &tris {
+        let c = t.p.map(|p| to_camera * p - center);
+        let s = c.map(|p| {
+            (
+                w as f32 * 0.5 + p.x * scale,
+                h as f32 * 0.5 - p.y * scale,
+                p.z,
+            )
+        });
+        let normal = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+        let Some(n) = normal.try_normalize() else {
+            continue;
+        };
+        // Two-sided Lambert with ambient.
+        let shade = 0.25 + 0.75 * n.dot(light).abs();
+        let color = t.color.map(|k| (k * shade * 255.0).clamp(0.0, 255.0) as u8);
+        let min_x = s
+            .iter()
+            .map(|v| v.0)
+            .fold(f32::INFINITY, f32::min)
+            .floor()
+            .max(0.0) as usize;
+        let max_x = s
+            .iter()
+            .map(|v| v.0)
+            .fold(f32::NEG_INFINITY, f32::max)
+            .ceil()
+            .min(w as f32 - 1.0);
+        let min_y = s
+            .iter()
+            .map(|v| v.1)
+            .fold(f32::INFINITY, f32::min)
+            .floor()
+            .max(0.0) as usize;
+        let max_y = s
+            .iter()
+            .map(|v| v.1)
+            .fold(f32::NEG_INFINITY, f32::max)
+            .ceil()
+            .min(h as f32 - 1.0);
+        if max_x < 0.0 || max_y < 0.0 {
+            continue;
+        }
+        let area = (s[1].0 - s[0].0) * (s[2].1 - s[0].1) - (s[2].0 - s[0].0) * (s[1].1 - s[0].1);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        for y in min_y..=max_y as usize {
+            for x in min_x..=max_x as usize {
+                let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+                let edge = |a: (f32, f32, f32), b: (f32, f32, f32)| {
+                    (b.0 - a.0) * (py - a.1) - (px - a.0) * (b.1 - a.1)
+                };
+                let w0 = edge(s[1], s[2]) / area;
+                let w1 = edge(s[2], s[0]) / area;
+                let w2 = edge(s[0], s[1]) / area;
+                if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                    continue;
+                }
+                let z = w0 * s[0].2 + w1 * s[1].2 + w2 * s[2].2;
+                let i = y * w + x;
+                if z > depth[i] {
+                    depth[i] = z;
+                    rgb[i * 3..i * 3 + 3].copy_from_slice(&color);
+                }
+            }
+        }
+    }
+    rgb
+}
+
+/// Writes RGB pixels as a PNG.
+pub fn write_png(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<()> {
+    let file = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(rgb)?;
+    Ok(())
+}
+
+/// Simulates `frame` frames of `scene` and renders the result.
+pub fn run(
+    scene: &str,
+    frame: u32,
+    view: View,
+    size: (u32, u32),
+    bones: bool,
+    out: &Path,
+) -> Result<ExitCode> {
+    let (_, mut solver) = load_solver(scene)?;
+    for _ in 0..frame {
+        solver.step();
+    }
+    let rgb = draw(&solver, view, size.0, size.1, bones);
+    write_png(out, &rgb, size.0, size.1)?;
+    println!("{}: frame {frame}, {}×{}", out.display(), size.0, size.1);
+    Ok(ExitCode::SUCCESS)
+}
