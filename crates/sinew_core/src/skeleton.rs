@@ -81,6 +81,21 @@ pub struct JointMotion {
     pub curve: Curve,
 }
 
+/// A joint whose value follows another's through a polynomial (MuJoCo's
+/// joint equality): `value = Σ cₖ · driverᵏ` for k = 0..4, or `c₀` alone
+/// without a driver. Knees use it to slide and roll the tibia and move the
+/// patella with the flexion angle.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct JointCoupling {
+    /// The coupled joint (hinge or slide).
+    pub joint: String,
+    /// The joint it follows; `None` holds it at `polynomial[0]`.
+    pub driver: Option<String>,
+    /// Coefficients `c₀ … c₄`.
+    pub polynomial: [f32; 5],
+}
+
 /// Bodies, joints and their animation, as stored in a scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -89,6 +104,8 @@ pub struct Skeleton {
     pub bodies: Vec<BodySpec>,
     /// Keyframed joint values; joints without motion stay at 0.
     pub motion: Vec<JointMotion>,
+    /// Joints computed from other joints, applied in order after the motion.
+    pub couplings: Vec<JointCoupling>,
 }
 
 #[derive(Clone, Debug)]
@@ -118,6 +135,8 @@ pub struct SkeletonRig {
     value_count: usize,
     /// `(value index, curve, range)`.
     motion: Vec<(usize, Curve, Option<(f32, f32)>)>,
+    /// `(value index, driver value index, coefficients)`.
+    couplings: Vec<(usize, Option<usize>, [f32; 5])>,
 }
 
 impl Skeleton {
@@ -230,6 +249,30 @@ impl Skeleton {
                 .and_then(|j| j.range);
             motion.push((offset + m.component as usize, m.curve.clone(), range));
         }
+        let mut couplings = Vec::with_capacity(self.couplings.len());
+        for (i, c) in self.couplings.iter().enumerate() {
+            let context = || format!("skeleton coupling {i} (joint '{}')", c.joint);
+            let value = |name: &str| -> Result<usize, SceneError> {
+                let &j = joint_names.get(name).ok_or_else(|| SceneError::UnknownReference {
+                    context: context(),
+                    kind: "joint",
+                    name: name.to_string(),
+                })?;
+                let (offset, kind) = joint_offsets[j];
+                if kind == JointKind::Ball {
+                    return Err(invalid(context(), format!("'{name}' is a ball joint")));
+                }
+                Ok(offset)
+            };
+            if c.polynomial.iter().any(|v| !v.is_finite()) {
+                return Err(invalid(context(), "non-finite coefficient".into()));
+            }
+            couplings.push((
+                value(&c.joint)?,
+                c.driver.as_deref().map(value).transpose()?,
+                c.polynomial,
+            ));
+        }
         Ok(SkeletonRig {
             names,
             bodies,
@@ -237,6 +280,7 @@ impl Skeleton {
             joint_offsets,
             value_count,
             motion,
+            couplings,
         })
     }
 }
@@ -278,6 +322,10 @@ impl SkeletonRig {
         for (i, curve, range) in &self.motion {
             let v = curve.sample(time);
             values[*i] = range.map_or(v, |(lo, hi)| v.clamp(lo, hi));
+        }
+        for &(joint, driver, c) in &self.couplings {
+            let x = driver.map_or(0.0, |d| values[d]);
+            values[joint] = c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * c[4])));
         }
     }
 
@@ -371,6 +419,7 @@ mod tests {
                     ..Default::default()
                 },
             }],
+            couplings: Vec::new(),
         }
     }
 
@@ -398,6 +447,27 @@ mod tests {
         let mut values = Vec::new();
         rig.values_at(1.0, &mut values);
         assert_eq!(values, vec![2.5]);
+    }
+
+    #[test]
+    fn couplings_follow_their_driver() {
+        let mut s = arm();
+        s.bodies[1].joints.push(JointSpec {
+            name: "slide".into(),
+            kind: JointKind::Slide,
+            axis: Vec3::X,
+            ..Default::default()
+        });
+        s.couplings.push(JointCoupling {
+            joint: "slide".into(),
+            driver: Some("elbow".into()),
+            polynomial: [0.01, 0.5, 0.0, 0.0, 0.0],
+        });
+        let rig = s.compile().unwrap();
+        let mut values = Vec::new();
+        rig.values_at(1.0, &mut values);
+        let q = std::f32::consts::FRAC_PI_2;
+        assert!((values[1] - (0.01 + 0.5 * q)).abs() < 1e-6, "{values:?}");
     }
 
     #[test]

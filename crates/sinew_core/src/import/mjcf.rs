@@ -11,7 +11,7 @@
 //! inertia, contacts, `<frame>` elements and free joints (an error names them).
 
 use crate::error::ImportError;
-use crate::skeleton::{JointKind, JointSpec};
+use crate::skeleton::{JointCoupling, JointKind, JointSpec};
 use glam::{Quat, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -136,6 +136,8 @@ pub struct MjcfModel {
     pub tendons: Vec<MjTendon>,
     /// Tendon actuators.
     pub actuators: Vec<MjActuator>,
+    /// Joint equalities (`<equality><joint joint1 joint2 polycoef>`).
+    pub couplings: Vec<JointCoupling>,
 }
 
 /// An XML element with `<include>`s expanded, owning its data.
@@ -587,6 +589,29 @@ impl<'a> Reader<'a> {
         Ok(())
     }
 
+    fn coupling(&mut self, e: &Element) -> Result<(), ImportError> {
+        let attrs = self.attr(e, "main");
+        if attrs.get("active") == Some("false") {
+            return Ok(());
+        }
+        let joint = attrs
+            .get("joint1")
+            .ok_or_else(|| e.origin.error("joint", "equality needs 'joint1'"))?;
+        let mut polynomial = [0.0, 1.0, 0.0, 0.0, 0.0];
+        if let Some(text) = attrs.get("polycoef") {
+            let v = floats(&e.origin, "joint", "polycoef", text)?;
+            for (slot, value) in polynomial.iter_mut().zip(v) {
+                *slot = value;
+            }
+        }
+        self.model.couplings.push(JointCoupling {
+            joint: joint.to_string(),
+            driver: attrs.get("joint2").map(str::to_string),
+            polynomial,
+        });
+        Ok(())
+    }
+
     fn actuator(&mut self, e: &Element) -> Result<(), ImportError> {
         let attrs = self.attr(e, "main");
         let get = |n: &str| attrs.get(n);
@@ -692,6 +717,11 @@ impl MjcfModel {
                 reader.tendon(t)?;
             }
         }
+        for c in root.children.iter().filter(|c| c.tag == "equality") {
+            for e in c.children.iter().filter(|e| e.tag == "joint") {
+                reader.coupling(e)?;
+            }
+        }
         for c in root.children.iter().filter(|c| c.tag == "actuator") {
             for a in &c.children {
                 reader.actuator(a)?;
@@ -738,7 +768,8 @@ impl MjcfModel {
         self.meshes.iter().find(|m| m.name == name)
     }
 
-    /// Attaches `child`'s root bodies at site `site` of this model. With
+    /// Attaches `child`'s root bodies at site `site` of this model (an empty
+    /// name: at the world origin, as myo-sim attaches the legs). With
     /// `mirror`, the child is first reflected through its local XY plane
     /// (z → −z, as myo-sim builds a left arm from the right one) and renamed:
     /// a trailing `_r` becomes `_l`, other names get `_l` appended.
@@ -748,15 +779,18 @@ impl MjcfModel {
         site: &str,
         mirror: bool,
     ) -> Result<(), ImportError> {
-        let s = self
-            .site_index(site)
-            .ok_or_else(|| ImportError::UnknownName {
-                context: format!("attaching {}", child.file.display()),
-                kind: "site",
-                name: site.to_string(),
-            })?;
-        let (site_body, site_pos, site_quat) =
-            (self.sites[s].body, self.sites[s].pos, self.sites[s].quat);
+        let (site_body, site_pos, site_quat) = if site.is_empty() {
+            (None, Vec3::ZERO, Quat::IDENTITY)
+        } else {
+            let s = self
+                .site_index(site)
+                .ok_or_else(|| ImportError::UnknownName {
+                    context: format!("attaching {}", child.file.display()),
+                    kind: "site",
+                    name: site.to_string(),
+                })?;
+            (self.sites[s].body, self.sites[s].pos, self.sites[s].quat)
+        };
         let child = if mirror {
             child.mirrored()
         } else {
@@ -794,6 +828,7 @@ impl MjcfModel {
                 a.tendon += t0;
                 a
             }));
+        self.couplings.extend(child.couplings);
         let mut names = std::collections::HashSet::new();
         for b in &self.bodies {
             if !names.insert(&b.name) {
@@ -850,6 +885,10 @@ impl MjcfModel {
         }
         for a in &mut m.actuators {
             a.name = left_name(&a.name);
+        }
+        for c in &mut m.couplings {
+            c.joint = left_name(&c.joint);
+            c.driver = c.driver.as_deref().map(left_name);
         }
         m
     }

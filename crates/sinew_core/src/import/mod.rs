@@ -274,10 +274,12 @@ pub fn import_model(
     let skeleton = Skeleton {
         bodies,
         motion: Vec::new(),
+        couplings: model.couplings.clone(),
     };
     let rig: SkeletonRig = skeleton.compile()?;
-    let mut world = Vec::new();
-    rig.pose(&vec![0.0; rig.value_count()], &mut world);
+    // Reference pose: every joint at 0, coupled joints at their polynomials.
+    let (mut values, mut world) = (Vec::new(), Vec::new());
+    rig.pose_at(0.0, &mut values, &mut world);
     let world_root = Affine3A::from_quat(root);
     let frame_of = |body: Option<usize>| body.map_or(world_root, |b| world[b]);
 
