@@ -1,10 +1,12 @@
 //! `import-mjcf`: MJCF model or import recipe → scene + meshes.
 
 use crate::commands::write_stdout;
+use sinew_core::Solver;
 use sinew_core::constraints::ConstraintCounts;
 use sinew_core::import::builder::SweepOptions;
 use sinew_core::import::mjcf::MjcfModel;
 use sinew_core::import::{ImportOptions, ImportRecipe, Imported, import_model};
+use sinew_core::solver::coloring::ColorGroups;
 use std::error::Error;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -39,7 +41,7 @@ fn split_attach(arg: &str) -> Result<(PathBuf, String)> {
 /// Runs the import and prints what it made.
 pub fn run(input: &Path, args: &ImportArgs) -> Result<ExitCode> {
     let start = Instant::now();
-    let (imported, scene_path) = if input.extension().is_some_and(|e| e == "ron") {
+    let (imported, scene_path, solver) = if input.extension().is_some_and(|e| e == "ron") {
         if !args.attach.is_empty() || !args.muscles.is_empty() || args.out.is_some() {
             return Err(
                 "a recipe names its own model, muscles and output; pass only the recipe".into(),
@@ -76,20 +78,39 @@ pub fn run(input: &Path, args: &ImportArgs) -> Result<ExitCode> {
             .unwrap_or_else(|| "scene".into());
         let mesh_dir = PathBuf::from(format!("{stem}_meshes"));
         let mut imported = import_model(&model, &options, &scene_dir, &mesh_dir)?;
-        imported.scene.instantiate(&scene_dir)?;
+        let solver = imported.scene.instantiate(&scene_dir)?;
         imported.scene.save(&out)?;
         imported.files.push(out.clone());
-        (imported, out)
+        (imported, out, solver)
     };
+    let built = start.elapsed().as_secs_f64();
+    // Colour groups of every muscle, as a parallel solver would need them.
+    let groups: usize = solver
+        .muscles()
+        .iter()
+        .map(|m| ColorGroups::greedy(m, &solver.settings.projection_order).len())
+        .sum();
     let seconds = start.elapsed().as_secs_f64();
-    write_stdout(&report(&imported, &scene_path, seconds)?)?;
+    write_stdout(&report(
+        &imported,
+        &scene_path,
+        &solver,
+        built,
+        groups,
+        seconds,
+    )?)?;
     Ok(ExitCode::SUCCESS)
 }
 
-fn report(imported: &Imported, scene_path: &Path, seconds: f64) -> Result<String> {
+fn report(
+    imported: &Imported,
+    scene_path: &Path,
+    solver: &Solver,
+    built: f64,
+    groups: usize,
+    seconds: f64,
+) -> Result<String> {
     let scene = &imported.scene;
-    let base = scene_path.parent().unwrap_or(Path::new("."));
-    let solver = scene.instantiate(base)?;
     let mut total = ConstraintCounts::default();
     for m in solver.muscles() {
         total += m.counts();
@@ -108,8 +129,9 @@ fn report(imported: &Imported, scene_path: &Path, seconds: f64) -> Result<String
     )?;
     writeln!(
         out,
-        "{} files written; import took {seconds:.2} s",
-        imported.files.len()
+        "{} files written; build {seconds:.2} s: read, compose, sweep, push-out, targets, write and constraints {built:.2} s; colouring {:.2} s ({groups} colour groups)",
+        imported.files.len(),
+        seconds - built
     )?;
     for n in &imported.notes {
         writeln!(out, "  note: {n}")?;

@@ -467,7 +467,7 @@ impl ActivationRig {
                     CompiledLayer::Op(|a, b| if b != 0.0 { a / b } else { a }, input(i)?)
                 }
                 ActivationLayer::Clamp { min, max } => {
-                    if !(min <= max) {
+                    if min.is_nan() || max.is_nan() || min > max {
                         return Err(invalid(format!("clamp [{min}, {max}] is empty")));
                     }
                     CompiledLayer::Clamp(*min, *max)

@@ -117,6 +117,14 @@ struct RigJoint {
     offset: usize,
 }
 
+/// A keyframed joint value: value index, curve and the joint's range.
+#[derive(Clone, Debug)]
+struct RigMotion {
+    value: usize,
+    curve: Curve,
+    range: Option<(f32, f32)>,
+}
+
 #[derive(Clone, Debug)]
 struct RigBody {
     parent: Option<usize>,
@@ -133,8 +141,8 @@ pub struct SkeletonRig {
     /// Value offset of each joint by name index.
     joint_offsets: Vec<(usize, JointKind)>,
     value_count: usize,
-    /// `(value index, curve, range)`.
-    motion: Vec<(usize, Curve, Option<(f32, f32)>)>,
+    /// Keyframed values.
+    motion: Vec<RigMotion>,
     /// `(value index, driver value index, coefficients)`.
     couplings: Vec<(usize, Option<usize>, [f32; 5])>,
 }
@@ -187,7 +195,7 @@ impl Skeleton {
                     return Err(invalid(jcontext(), "non-finite anchor".into()));
                 }
                 if let Some((lo, hi)) = j.range
-                    && !(lo <= hi)
+                    && (lo.is_nan() || hi.is_nan() || lo > hi)
                 {
                     return Err(invalid(jcontext(), format!("range ({lo}, {hi}) is empty")));
                 }
@@ -247,17 +255,23 @@ impl Skeleton {
                 .flat_map(|b| &b.joints)
                 .nth(j)
                 .and_then(|j| j.range);
-            motion.push((offset + m.component as usize, m.curve.clone(), range));
+            motion.push(RigMotion {
+                value: offset + m.component as usize,
+                curve: m.curve.clone(),
+                range,
+            });
         }
         let mut couplings = Vec::with_capacity(self.couplings.len());
         for (i, c) in self.couplings.iter().enumerate() {
             let context = || format!("skeleton coupling {i} (joint '{}')", c.joint);
             let value = |name: &str| -> Result<usize, SceneError> {
-                let &j = joint_names.get(name).ok_or_else(|| SceneError::UnknownReference {
-                    context: context(),
-                    kind: "joint",
-                    name: name.to_string(),
-                })?;
+                let &j = joint_names
+                    .get(name)
+                    .ok_or_else(|| SceneError::UnknownReference {
+                        context: context(),
+                        kind: "joint",
+                        name: name.to_string(),
+                    })?;
                 let (offset, kind) = joint_offsets[j];
                 if kind == JointKind::Ball {
                     return Err(invalid(context(), format!("'{name}' is a ball joint")));
@@ -319,9 +333,9 @@ impl SkeletonRig {
     pub fn values_at(&self, time: f32, values: &mut Vec<f32>) {
         values.clear();
         values.resize(self.value_count, 0.0);
-        for (i, curve, range) in &self.motion {
-            let v = curve.sample(time);
-            values[*i] = range.map_or(v, |(lo, hi)| v.clamp(lo, hi));
+        for m in &self.motion {
+            let v = m.curve.sample(time);
+            values[m.value] = m.range.map_or(v, |(lo, hi)| v.clamp(lo, hi));
         }
         for &(joint, driver, c) in &self.couplings {
             let x = driver.map_or(0.0, |d| values[d]);

@@ -224,7 +224,8 @@ pub fn sweep_path_clear_of(
     }
     let belly = options.belly_radius(force);
     let tendon = belly * options.tendon_ratio;
-    if !(belly > 0.0 && belly.is_finite()) || !(tendon > 0.0) {
+    let positive = |r: f32| r > 0.0 && r.is_finite();
+    if !positive(belly) || !positive(tendon) {
         return Err(err(format!(
             "radius {belly} (tendon ratio {}) must be > 0",
             options.tendon_ratio

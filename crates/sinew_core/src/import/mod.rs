@@ -771,8 +771,12 @@ impl ImportRecipe {
         })
     }
 
-    /// Imports, builds and writes the scene; returns it with its path.
-    pub fn run(&self, recipe_path: &Path) -> Result<(Imported, PathBuf), ImportError> {
+    /// Imports, builds and writes the scene; returns it with its path and
+    /// the solver it was checked with (instantiated once, before writing).
+    pub fn run(
+        &self,
+        recipe_path: &Path,
+    ) -> Result<(Imported, PathBuf, crate::Solver), ImportError> {
         let base = recipe_path.parent().unwrap_or(Path::new("."));
         let mut model = MjcfModel::load(&base.join(&self.model))?;
         for a in &self.attach {
@@ -824,9 +828,9 @@ impl ImportRecipe {
             }
         }
         // Check it loads before writing it.
-        scene.instantiate(&scene_dir)?;
+        let solver = scene.instantiate(&scene_dir)?;
         scene.save(&scene_path)?;
         imported.files.push(scene_path.clone());
-        Ok((imported, scene_path))
+        Ok((imported, scene_path, solver))
     }
 }
