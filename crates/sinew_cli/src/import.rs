@@ -16,18 +16,26 @@ use std::time::Instant;
 type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
 /// What the command line asks for besides the input.
+#[derive(clap::Args)]
 pub struct ImportArgs {
-    /// `FILE@SITE` models to attach.
+    /// Attach another model at a site of this one: FILE@SITE (repeatable;
+    /// an empty SITE is the world origin).
+    #[arg(long)]
     pub attach: Vec<String>,
-    /// `FILE@SITE` models to attach mirrored.
+    /// Attach a mirrored (right → left) copy: FILE@SITE (repeatable).
+    #[arg(long)]
     pub attach_mirrored: Vec<String>,
-    /// Muscles to import.
+    /// Muscles (actuator names) to import, comma separated; default all.
+    #[arg(long, value_delimiter = ',')]
     pub muscles: Vec<String>,
-    /// Approximate vertices per muscle.
+    /// Approximate vertex count per muscle.
+    #[arg(long)]
     pub resolution: Option<u32>,
-    /// Belly radius for every muscle.
+    /// Belly radius of every muscle (m) instead of the one from its force.
+    #[arg(long)]
     pub radius: Option<f32>,
-    /// Output scene.
+    /// Output scene file (meshes go to `<stem>_meshes/` beside it).
+    #[arg(long)]
     pub out: Option<PathBuf>,
 }
 

@@ -64,24 +64,8 @@ enum Command {
     ImportMjcf {
         /// MJCF model (.xml) or import recipe (.ron).
         input: PathBuf,
-        /// Attach another model at a site of this one: FILE@SITE (repeatable).
-        #[arg(long)]
-        attach: Vec<String>,
-        /// Attach a mirrored (right → left) copy: FILE@SITE (repeatable).
-        #[arg(long)]
-        attach_mirrored: Vec<String>,
-        /// Muscles (actuator names) to import, comma separated; default all.
-        #[arg(long, value_delimiter = ',')]
-        muscles: Vec<String>,
-        /// Approximate vertex count per muscle.
-        #[arg(long)]
-        resolution: Option<u32>,
-        /// Belly radius of every muscle (m) instead of the one from its force.
-        #[arg(long)]
-        radius: Option<f32>,
-        /// Output scene file (meshes go to `<stem>_meshes/` beside it).
-        #[arg(long)]
-        out: Option<PathBuf>,
+        #[command(flatten)]
+        args: import::ImportArgs,
     },
     /// Simulate and report finiteness, attachment error, muscle–bone
     /// penetration, volume range, peak activation and belly cross-section.
@@ -161,25 +145,7 @@ fn main() -> ExitCode {
             every,
             depth_mm,
         } => check::run(&scene, frames, every, depth_mm),
-        Command::ImportMjcf {
-            input,
-            attach,
-            attach_mirrored,
-            muscles,
-            resolution,
-            radius,
-            out,
-        } => import::run(
-            &input,
-            &import::ImportArgs {
-                attach,
-                attach_mirrored,
-                muscles,
-                resolution,
-                radius,
-                out,
-            },
-        ),
+        Command::ImportMjcf { input, args } => import::run(&input, &args),
     };
     match result {
         Ok(code) => code,

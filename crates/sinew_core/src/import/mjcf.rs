@@ -862,16 +862,17 @@ impl MjcfModel {
                 };
             }
         }
+        let place = |name: &mut String, pos: &mut Vec3, quat: &mut Quat| {
+            *name = left_name(name);
+            *pos = reflect(*pos);
+            *quat = reflect_quat(*quat);
+        };
         for s in &mut m.sites {
-            s.name = left_name(&s.name);
-            s.pos = reflect(s.pos);
-            s.quat = reflect_quat(s.quat);
+            place(&mut s.name, &mut s.pos, &mut s.quat);
         }
         for g in &mut m.geoms {
-            g.name = left_name(&g.name);
+            place(&mut g.name, &mut g.pos, &mut g.quat);
             g.mesh = left_name(&g.mesh);
-            g.pos = reflect(g.pos);
-            g.quat = reflect_quat(g.quat);
         }
         for mesh in &mut m.meshes {
             mesh.name = left_name(&mesh.name);
