@@ -31,18 +31,32 @@ struct RunResult {
     iterations: usize,
     /// Timer clock reads in the last frame.
     clock_reads: u32,
+    /// Worker threads setting (0 = every core).
+    threads: u32,
+}
+
+/// Settings a benchmark overrides in the scene.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Overrides {
+    /// Global iteration count.
+    pub iterations: Option<u32>,
+    /// Worker threads (0 = every core).
+    pub threads: Option<u32>,
 }
 
 /// One run: per-block ms/frame and wall ms/frame.
 fn run_once(
     scene: &str,
     frames: u32,
-    iterations: Option<u32>,
+    overrides: Overrides,
     timers: bool,
 ) -> Result<RunResult, Box<dyn Error>> {
     let (_, mut solver) = load_solver(scene)?;
-    if let Some(i) = iterations {
+    if let Some(i) = overrides.iterations {
         solver.settings.iterations = i;
+    }
+    if let Some(t) = overrides.threads {
+        solver.settings.threads = t;
     }
     solver.settings.timers = timers;
     // Warm-up frame links targets and faults pages in.
@@ -65,6 +79,7 @@ fn run_once(
         constraints,
         iterations: solver.settings.iterations as usize,
         clock_reads: solver.timings().clock_reads,
+        threads: solver.settings.threads,
     })
 }
 
@@ -126,28 +141,34 @@ pub fn run(
     scene: &str,
     frames: u32,
     runs: u32,
-    iterations: Option<u32>,
+    overrides: Overrides,
     timer_overhead: bool,
 ) -> Result<ExitCode, Box<dyn Error>> {
     let runs = runs.max(1);
     let mut blocks: Vec<Vec<f64>> = vec![Vec::new(); 7];
     let mut walls = Vec::new();
     let mut untimed = Vec::new();
-    let (mut constraints, mut iters, mut reads_per_frame) = (0, 0, 0);
+    let (mut constraints, mut iters, mut reads_per_frame, mut threads) = (0, 0, 0, 1);
     for _ in 0..runs {
-        let r = run_once(scene, frames, iterations, true)?;
+        let r = run_once(scene, frames, overrides, true)?;
         for (k, v) in r.blocks.iter().enumerate() {
             blocks[k].push(*v);
         }
         walls.push(r.wall);
-        (constraints, iters, reads_per_frame) = (r.constraints, r.iterations, r.clock_reads);
+        (constraints, iters, reads_per_frame, threads) =
+            (r.constraints, r.iterations, r.clock_reads, r.threads);
         if timer_overhead {
-            untimed.push(run_once(scene, frames, iterations, false)?.wall);
+            untimed.push(run_once(scene, frames, overrides, false)?.wall);
         }
     }
     let wall = median(walls);
     println!(
-        "scene {scene}: {constraints} constraints, {iters} iterations, {frames} frames × {runs} runs (medians), 1 thread"
+        "scene {scene}: {constraints} constraints, {iters} iterations, {frames} frames × {runs} runs (medians), {}",
+        match threads {
+            0 => format!("{} threads (every core)", rayon_cores()),
+            1 => "1 thread".to_string(),
+            n => format!("{n} threads"),
+        }
     );
     println!("{:<16}{:>12}{:>8}", "block", "ms/frame", "share");
     let medians: Vec<f64> = blocks.into_iter().map(median).collect();
@@ -176,4 +197,9 @@ pub fn run(
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Cores the "every core" setting uses.
+fn rayon_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
 }

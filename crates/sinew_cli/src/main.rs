@@ -55,6 +55,9 @@ enum Command {
         /// Override the global iteration count.
         #[arg(long)]
         iterations: Option<u32>,
+        /// Worker threads (0 = every core); default: the scene's.
+        #[arg(long)]
+        threads: Option<u32>,
         /// Also time with block timers off, to show their overhead.
         #[arg(long)]
         timer_overhead: bool,
@@ -127,8 +130,18 @@ fn main() -> ExitCode {
             frames,
             runs,
             iterations,
+            threads,
             timer_overhead,
-        } => bench::run(&scene, frames, runs, iterations, timer_overhead),
+        } => bench::run(
+            &scene,
+            frames,
+            runs,
+            bench::Overrides {
+                iterations,
+                threads,
+            },
+            timer_overhead,
+        ),
         Command::Scene { name, out } => commands::write_builtin(&name, &out),
         Command::Render {
             scene,

@@ -80,6 +80,11 @@ pub struct SolverSettings {
     /// frame a contact point slides inside its triangle and reaches the
     /// neighbours at the next frame.
     pub walk_every_iteration: bool,
+    /// Worker threads for closest data and projection, split by muscle
+    /// (SPEC §9.1): `1` spawns none, `0` uses every core. Muscles read each
+    /// other only through published snapshots, so the result is bit-identical
+    /// for any count. Default: `1`.
+    pub threads: u32,
 }
 
 impl Default for SolverSettings {
@@ -96,6 +101,7 @@ impl Default for SolverSettings {
             timers: true,
             full_search_interval: 16,
             walk_every_iteration: false,
+            threads: 1,
         }
     }
 }
@@ -185,6 +191,8 @@ pub struct Solver {
     warnings: Vec<String>,
     skeleton: Option<SkeletonState>,
     activation_rig: Option<ActivationRig>,
+    /// Worker pool for `settings.threads != 1`, with the count it was built for.
+    pool: Option<(u32, rayon::ThreadPool)>,
     /// Bone poses at the current substep.
     substep_poses: Vec<Affine3A>,
 }
@@ -207,6 +215,7 @@ impl Solver {
             warnings: Vec::new(),
             skeleton: None,
             activation_rig: None,
+            pool: None,
             substep_poses: Vec::new(),
         })
     }
@@ -546,8 +555,28 @@ impl Solver {
             }));
     }
 
+    /// Builds (or drops) the worker pool to match `settings.threads`.
+    fn sync_pool(&mut self) {
+        let wanted = self.settings.threads;
+        if wanted == 1 {
+            self.pool = None;
+            return;
+        }
+        if self.pool.as_ref().is_some_and(|(n, _)| *n == wanted) {
+            return;
+        }
+        // A pool that cannot be built leaves the solver single-threaded.
+        self.pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(wanted as usize)
+            .thread_name(|i| format!("sinew-{i}"))
+            .build()
+            .ok()
+            .map(|p| (wanted, p));
+    }
+
     /// Advances one frame.
     pub fn step(&mut self) {
+        self.sync_pool();
         let mut timings = StepTimings::default();
         let mut clock = Stopwatch::new(self.settings.timers);
         // Read inputs.
@@ -626,27 +655,25 @@ impl Solver {
                     walk: full_searches || self.settings.walk_every_iteration,
                     substep_start: it == 0,
                 };
-                for m in &mut self.muscles {
-                    if it >= m.params.iterations.unwrap_or(global_iterations) as usize {
-                        continue;
+                let targets = &self.targets;
+                let order = &self.settings.projection_order;
+                let active =
+                    |m: &Muscle| it < m.params.iterations.unwrap_or(global_iterations) as usize;
+                // Closest data, then projection, muscle by muscle: a muscle
+                // reads the others only through the snapshots published above,
+                // so splitting the work by muscle gives the same bits.
+                for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
+                    if active(m) {
+                        closest_data(m, targets, search);
                     }
-                    closest_data(m, &self.targets, search);
-                    clock.lap(&mut timings.closest_data);
-                    // Bone contacts go after every other constraint but a
-                    // trailing Volume, which keeps the volume exact while
-                    // moving vertices far less than the contacts did.
-                    let order = &self.settings.projection_order;
-                    let (body, volume_last) = match order.split_last() {
-                        Some((ConstraintKind::Volume, rest)) => (rest, true),
-                        _ => (order.as_slice(), false),
-                    };
-                    project(m, body, inv_h2);
-                    bone_contacts(m, &self.targets);
-                    if volume_last {
-                        project(m, &[ConstraintKind::Volume], inv_h2);
+                });
+                clock.lap(&mut timings.closest_data);
+                for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
+                    if active(m) {
+                        project_iteration(m, order, targets, inv_h2);
                     }
-                    clock.lap(&mut timings.project);
-                }
+                });
+                clock.lap(&mut timings.project);
             }
             for (m, reference) in self.muscles.iter_mut().zip(free_momentum) {
                 apply_predictions(m, h);
@@ -817,6 +844,41 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
         if moved(t) {
             c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
         }
+    }
+}
+
+/// Runs `f` on every muscle, on the pool's threads when there is one.
+fn for_each_muscle(
+    pool: Option<&(u32, rayon::ThreadPool)>,
+    muscles: &mut [Muscle],
+    f: impl Fn(&mut Muscle) + Sync + Send,
+) {
+    use rayon::prelude::*;
+    match pool {
+        Some((_, pool)) if muscles.len() > 1 => {
+            pool.install(|| muscles.par_iter_mut().for_each(&f));
+        }
+        _ => muscles.iter_mut().for_each(f),
+    }
+}
+
+/// One iteration's projection of a muscle: every type in `order` but a
+/// trailing Volume, then the bone contacts, then the Volume (which keeps the
+/// volume exact while moving vertices far less than the contacts did).
+fn project_iteration(
+    m: &mut Muscle,
+    order: &[ConstraintKind],
+    targets: &[TargetSurface],
+    inv_h2: f32,
+) {
+    let (body, volume_last) = match order.split_last() {
+        Some((ConstraintKind::Volume, rest)) => (rest, true),
+        _ => (order, false),
+    };
+    project(m, body, inv_h2);
+    bone_contacts(m, targets);
+    if volume_last {
+        project(m, &[ConstraintKind::Volume], inv_h2);
     }
 }
 

@@ -298,3 +298,58 @@ fn hard_attachments_hold_exactly_while_the_muscle_hangs() {
         "{lowest} vs rest {rest_lowest}"
     );
 }
+
+/// Positions after `frames` frames of a built-in scene with `threads` workers.
+fn positions_with_threads(scene: &str, threads: u32, frames: usize) -> Vec<u32> {
+    let mut scene = builtin(scene).unwrap();
+    scene.settings.threads = threads;
+    scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+    for _ in 0..frames {
+        s.step();
+    }
+    s.muscles()
+        .iter()
+        .flat_map(|m| m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)))
+        .collect()
+}
+
+#[test]
+fn sequential_is_bit_identical_for_1_2_and_8_threads() {
+    for scene in ["P2", "P3"] {
+        let one = positions_with_threads(scene, 1, 30);
+        assert_eq!(
+            one,
+            positions_with_threads(scene, 2, 30),
+            "{scene}: 2 threads"
+        );
+        assert_eq!(
+            one,
+            positions_with_threads(scene, 8, 30),
+            "{scene}: 8 threads"
+        );
+        assert_eq!(
+            one,
+            positions_with_threads(scene, 0, 30),
+            "{scene}: every core"
+        );
+    }
+}
+
+#[test]
+fn changing_the_thread_count_between_frames_changes_nothing() {
+    let reference = positions_with_threads("P3", 1, 20);
+    let mut scene = builtin("P3").unwrap();
+    scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+    for frame in 0..20 {
+        s.settings.threads = [1, 3, 0, 2][frame % 4];
+        s.step();
+    }
+    let got: Vec<u32> = s
+        .muscles()
+        .iter()
+        .flat_map(|m| m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)))
+        .collect();
+    assert_eq!(reference, got);
+}
