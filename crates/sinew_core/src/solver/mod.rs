@@ -833,15 +833,16 @@ pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: Cl
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
     let moved = |t: &TargetSurface| search.substep_start || t.is_deforming();
+    // Disabled instances (weight 0: infinite compliance) need no goal.
     for (i, a) in c.soft_anchor.iter().enumerate() {
         let t = &targets[m.target_ids[a.target as usize]];
-        if moved(t) {
+        if c.soft.compliance[i].is_finite() && moved(t) {
             c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
         }
     }
     for (i, a) in c.hard_anchor.iter().enumerate() {
         let t = &targets[m.target_ids[a.target as usize]];
-        if moved(t) {
+        if c.hard.compliance[i].is_finite() && moved(t) {
             c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
         }
     }
