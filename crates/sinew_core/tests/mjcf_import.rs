@@ -277,3 +277,23 @@ fn non_positive_radius_is_an_error() {
         &["unknown muscle", "biceps"],
     );
 }
+
+#[test]
+fn bone_slivers_are_dropped_not_fatal() {
+    let dir = scratch("sliver");
+    let path = model(&dir, "sliver.xml", &with(BODY, ""));
+    // The box plus a zero-area sliver: fatal for a muscle, harmless for a bone.
+    let bone = dir.join("meshes/bone.obj");
+    let mut text = std::fs::read_to_string(&bone).unwrap();
+    text.push_str("v 0 0 0.15\nf 8 9 2\n");
+    std::fs::write(&bone, text).unwrap();
+    let m = MjcfModel::load(&path).unwrap();
+    let options = ImportOptions {
+        bone_meshes: sinew_core::import::BoneMeshes::All,
+        ..Default::default()
+    };
+    let imported = import_model(&m, &options, &dir, Path::new("out")).unwrap();
+    assert!(imported.scene.bones[0].shape.is_some());
+    imported.scene.instantiate(&dir).unwrap();
+    std::fs::remove_dir_all(dir).ok();
+}

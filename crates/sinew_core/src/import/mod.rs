@@ -167,53 +167,40 @@ fn bone_geometry(model: &MjcfModel) -> Result<Vec<Option<BoneGeometry>>, ImportE
     Ok(out)
 }
 
-/// Loads a mesh keeping only triangles with a non-zero area.
+/// Loads a mesh, welds it, and drops the triangles that welding made
+/// degenerate (repeated corners or zero area): a bone target only needs
+/// triangles, and scanned bones have slivers.
 fn tolerant_load(path: &Path) -> Result<SurfaceMesh, ImportError> {
-    let raw = load_mesh(
-        path,
-        &LoadOptions {
-            weld_tolerance: None,
-            ..Default::default()
-        },
-    );
-    // Without welding STL triangles are separate; drop slivers and weld again.
-    let soup = match raw {
-        Ok(m) => m,
-        Err(_) => {
-            let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
-                file: path.to_path_buf(),
-                source,
-            })?;
-            let mut cursor = std::io::Cursor::new(bytes);
-            let tris = stl_io::read_stl(&mut cursor).map_err(|e| {
-                ImportError::Mesh(crate::MeshError::Parse {
-                    file: path.to_path_buf(),
-                    reason: e.to_string(),
-                })
-            })?;
-            let positions: Vec<Vec3> = tris
-                .vertices
-                .iter()
-                .map(|v| Vec3::from_array(v.0))
-                .collect();
-            let polys: Vec<Vec<u32>> = tris
-                .faces
-                .iter()
-                .filter(|f| {
-                    let [a, b, c] = f.vertices.map(|i| positions[i]);
-                    (b - a).cross(c - a).length() > 1e-12
-                })
-                .map(|f| f.vertices.iter().map(|&i| i as u32).collect())
-                .collect();
-            return Ok(crate::mesh::load::from_raw(
-                path,
-                positions,
-                polys,
-                &LoadOptions::default(),
-            )?);
+    let (positions, polygons) = crate::mesh::load::read_raw(path)?;
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(crate::MeshError::NonFinite {
+            file: path.to_path_buf(),
+            vertex: i,
+            value: positions[i].to_array(),
         }
-    };
-    Ok(soup)
+        .into());
+    }
+    for (face, poly) in polygons.iter().enumerate() {
+        if let Some(&index) = poly.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(crate::MeshError::IndexOutOfRange {
+                file: path.to_path_buf(),
+                face,
+                index: index as usize,
+                count: positions.len(),
+            }
+            .into());
+        }
+    }
+    let (lo, hi) = crate::mesh::bounds_of(&positions);
+    let (welded, remap) = crate::mesh::weld_positions(&positions, 1e-6 * (hi - lo).length());
+    let at = |i: u32| welded[remap[i as usize] as usize];
+    let triangles: Vec<Vec<u32>> = polygons
+        .iter()
+        .flat_map(|poly| (1..poly.len() - 1).map(move |k| [poly[0], poly[k], poly[k + 1]]))
+        .filter(|&[a, b, c]| (at(b) - at(a)).cross(at(c) - at(a)).length() > 1e-12)
+        .map(|t| t.map(|i| remap[i as usize]).to_vec())
+        .collect();
+    Ok(SurfaceMesh::new(path, welded, &triangles)?)
 }
 
 /// Result of [`import_model`].

@@ -35,20 +35,24 @@ impl Default for LoadOptions {
 /// manifold, orientation) is *not* required here; see
 /// [`SurfaceMesh::check_closed_manifold`].
 pub fn load_mesh(path: &Path, options: &LoadOptions) -> Result<SurfaceMesh, MeshError> {
+    let (positions, polygons) = read_raw(path)?;
+    from_raw(path, positions, polygons, options)
+}
+
+/// The positions and polygons of an OBJ or STL file, as stored (no welding,
+/// no validation beyond the syntax).
+pub(crate) fn read_raw(path: &Path) -> Result<Raw, MeshError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let (positions, polygons) = match ext.as_deref() {
-        Some("obj") => read_obj(path)?,
-        Some("stl") => read_stl(path)?,
-        _ => {
-            return Err(MeshError::UnsupportedFormat {
-                file: path.to_path_buf(),
-            });
-        }
-    };
-    from_raw(path, positions, polygons, options)
+    match ext.as_deref() {
+        Some("obj") => read_obj(path),
+        Some("stl") => read_stl(path),
+        _ => Err(MeshError::UnsupportedFormat {
+            file: path.to_path_buf(),
+        }),
+    }
 }
 
 /// Builds a mesh from raw positions and polygons with the load options applied.
@@ -101,7 +105,8 @@ pub(crate) fn from_raw(
     })
 }
 
-type Raw = (Vec<Vec3>, Vec<Vec<u32>>);
+/// Positions and polygons as read from a file.
+pub(crate) type Raw = (Vec<Vec3>, Vec<Vec<u32>>);
 
 /// Reads the vertices and faces of a Wavefront OBJ, keeping the file's vertex
 /// order (scenes refer to vertices by index: roots, attachments, maps).
