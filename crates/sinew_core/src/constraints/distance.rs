@@ -27,7 +27,7 @@
 //! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
 //! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
-use super::delta_lambda;
+use super::{Correction, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -161,20 +161,35 @@ impl DistanceBatch {
 
     /// One Gauss–Seidel pass over the batch.
     pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
-        let alpha = self.compliance * inv_dt2;
         for i in 0..self.a.len() {
-            let (ia, ib) = (self.a[i] as usize, self.b[i] as usize);
-            let d = p[ia] - p[ib];
-            let len = d.length();
-            if len < 1e-9 {
-                continue;
+            if let Some(c) = self.correction(i, p, w, inv_dt2) {
+                self.commit(i, &c, p);
             }
-            let (wa, wb) = (w[ia], w[ib]);
-            let dl = delta_lambda(len - self.rest[i], self.lambda[i], wa + wb, alpha);
-            self.lambda[i] += dl;
-            let n = d * (dl / len);
-            p[ia] += wa * n;
-            p[ib] -= wb * n;
         }
+    }
+
+    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
+    pub fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+        let alpha = self.compliance * inv_dt2;
+        let (ia, ib) = (self.a[i] as usize, self.b[i] as usize);
+        let d = p[ia] - p[ib];
+        let len = d.length();
+        if len < 1e-9 {
+            return None;
+        }
+        let (wa, wb) = (w[ia], w[ib]);
+        let dl = delta_lambda(len - self.rest[i], self.lambda[i], wa + wb, alpha);
+        let n = d * (dl / len);
+        let mut to_a = p[ia];
+        to_a += wa * n;
+        let mut to_b = p[ib];
+        to_b -= wb * n;
+        Some(Correction::two(dl, (self.a[i], to_a), (self.b[i], to_b)))
+    }
+
+    /// Writes a correction of constraint `i`.
+    pub fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
+        self.lambda[i] += c.dlambda;
+        c.write(p);
     }
 }

@@ -29,6 +29,7 @@ pub use point::PointBatch;
 pub use sliding::{SlidingBatch, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams};
 
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 /// The constraint types, in the canonical projection order (SPEC §4.3).
@@ -117,6 +118,48 @@ impl std::ops::AddAssign for ConstraintCounts {
     fn add_assign(&mut self, rhs: Self) {
         for (a, b) in self.0.iter_mut().zip(rhs.0) {
             *a += b;
+        }
+    }
+}
+
+/// The outcome of projecting one constraint, computed without writing: the
+/// multiplier increment and the new positions of the (at most two) particles
+/// it moves. Gauss–Seidel commits it at once; a colour group computes all its
+/// corrections first (in parallel) and then commits them, which gives the
+/// same bits because the group's constraints share no particle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correction {
+    /// Multiplier increment.
+    pub dlambda: f32,
+    /// `(particle, new position)`; the first `count` entries are used.
+    pub moves: [(u32, Vec3); 2],
+    /// Number of particles moved.
+    pub count: u8,
+}
+
+impl Correction {
+    /// One particle moved.
+    pub fn one(dlambda: f32, particle: u32, to: Vec3) -> Self {
+        Self {
+            dlambda,
+            moves: [(particle, to), (particle, to)],
+            count: 1,
+        }
+    }
+
+    /// Two particles moved.
+    pub fn two(dlambda: f32, a: (u32, Vec3), b: (u32, Vec3)) -> Self {
+        Self {
+            dlambda,
+            moves: [a, b],
+            count: 2,
+        }
+    }
+
+    /// Writes the new positions.
+    pub fn write(&self, p: &mut [Vec3]) {
+        for &(k, x) in &self.moves[..self.count as usize] {
+            p[k as usize] = x;
         }
     }
 }

@@ -8,7 +8,7 @@
 //! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
 //! ```
 
-use super::delta_lambda;
+use super::{Correction, delta_lambda};
 use glam::Vec3;
 
 /// A batch of single-particle constraints towards goal points.
@@ -55,19 +55,33 @@ impl PointBatch {
     /// One Gauss–Seidel pass over the batch.
     pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         for i in 0..self.particle.len() {
-            let alpha = self.compliance[i] * inv_dt2;
-            if !alpha.is_finite() {
-                continue;
+            if let Some(c) = self.correction(i, p, w, inv_dt2) {
+                self.commit(i, &c, p);
             }
-            let k = self.particle[i] as usize;
-            let d = p[k] - self.goal[i];
-            let len = d.length();
-            if len < 1e-9 {
-                continue;
-            }
-            let dl = delta_lambda(len - self.rest[i], self.lambda[i], w[k], alpha);
-            self.lambda[i] += dl;
-            p[k] += d * (w[k] * dl / len);
         }
+    }
+
+    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
+    pub fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+        let alpha = self.compliance[i] * inv_dt2;
+        if !alpha.is_finite() {
+            return None;
+        }
+        let k = self.particle[i] as usize;
+        let d = p[k] - self.goal[i];
+        let len = d.length();
+        if len < 1e-9 {
+            return None;
+        }
+        let dl = delta_lambda(len - self.rest[i], self.lambda[i], w[k], alpha);
+        let mut to = p[k];
+        to += d * (w[k] * dl / len);
+        Some(Correction::one(dl, self.particle[i], to))
+    }
+
+    /// Writes a correction of constraint `i`.
+    pub fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
+        self.lambda[i] += c.dlambda;
+        c.write(p);
     }
 }

@@ -13,7 +13,7 @@
 //! non-compliant position projection (bones do not give way), then the
 //! compliant gap equality acts as usual.
 
-use super::delta_lambda;
+use super::{Correction, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -89,30 +89,44 @@ impl SlidingBatch {
     /// One Gauss–Seidel pass.
     pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         for i in 0..self.particle.len() {
-            let alpha = self.compliance[i] * inv_dt2;
-            if !alpha.is_finite() {
-                continue;
+            if let Some(c) = self.correction(i, p, w, inv_dt2) {
+                self.commit(i, &c, p);
             }
-            let k = self.particle[i] as usize;
-            let t = self.target[i];
-            if t != u32::MAX && w[k] > 0.0 && self.rigid.get(t as usize) == Some(&true) {
-                let slot = i * self.targets + t as usize;
-                let s = self.normal[i].dot(p[k] - self.point[i]);
-                if s < 0.0 && self.rest_outside[slot] {
-                    p[k] -= self.normal[i] * s;
-                }
-            }
-            let Some((c, g)) = self.value_and_gradient(i, p[k]) else {
-                continue;
-            };
-            let mut dl = delta_lambda(c, self.lambda[i], w[k] * g.length_squared(), alpha);
-            if self.mode == SlidingMode::Contact {
-                // Unilateral: total λ stays ≥ 0 (it may only push outwards).
-                let total = (self.lambda[i] + dl).max(0.0);
-                dl = total - self.lambda[i];
-            }
-            self.lambda[i] += dl;
-            p[k] += g * (w[k] * dl);
         }
+    }
+
+    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
+    pub fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+        let alpha = self.compliance[i] * inv_dt2;
+        if !alpha.is_finite() {
+            return None;
+        }
+        let k = self.particle[i] as usize;
+        let mut x = p[k];
+        let t = self.target[i];
+        if t != u32::MAX && w[k] > 0.0 && self.rigid.get(t as usize) == Some(&true) {
+            let slot = i * self.targets + t as usize;
+            let s = self.normal[i].dot(x - self.point[i]);
+            if s < 0.0 && self.rest_outside[slot] {
+                x -= self.normal[i] * s;
+            }
+        }
+        let Some((c, g)) = self.value_and_gradient(i, x) else {
+            return (x != p[k]).then(|| Correction::one(0.0, self.particle[i], x));
+        };
+        let mut dl = delta_lambda(c, self.lambda[i], w[k] * g.length_squared(), alpha);
+        if self.mode == SlidingMode::Contact {
+            // Unilateral: total λ stays ≥ 0 (it may only push outwards).
+            let total = (self.lambda[i] + dl).max(0.0);
+            dl = total - self.lambda[i];
+        }
+        x += g * (w[k] * dl);
+        Some(Correction::one(dl, self.particle[i], x))
+    }
+
+    /// Writes a correction of constraint `i`.
+    pub fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
+        self.lambda[i] += c.dlambda;
+        c.write(p);
     }
 }
