@@ -1,8 +1,8 @@
 //! `sinew bench`: per-block ms/frame, medians of several runs.
 
 use crate::commands::load_solver;
-use sinew_core::StepTimings;
 use sinew_core::glam::Vec3;
+use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings};
 use std::error::Error;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -33,15 +33,57 @@ struct RunResult {
     clock_reads: u32,
     /// Worker threads setting (0 = every core).
     threads: u32,
+    /// Projection method.
+    method: SolverMethod,
 }
 
-/// Settings a benchmark overrides in the scene.
-#[derive(Clone, Copy, Debug, Default)]
+/// A projection method named on the command line.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum Method {
+    /// Gauss–Seidel, the reference.
+    Sequential,
+    /// Per-muscle colour groups, each group in parallel.
+    Colored,
+}
+
+impl From<Method> for SolverMethod {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Sequential => SolverMethod::Sequential,
+            Method::Colored => SolverMethod::Colored {
+                scope: ColorScope::PerMuscle,
+            },
+        }
+    }
+}
+
+/// Settings a benchmark or check overrides in the scene.
+#[derive(Clone, Copy, Debug, Default, clap::Args)]
 pub struct Overrides {
-    /// Global iteration count.
+    /// Global iteration count (default: the scene's).
+    #[arg(long)]
     pub iterations: Option<u32>,
-    /// Worker threads (0 = every core).
+    /// Worker threads, 0 = every core (default: the scene's).
+    #[arg(long)]
     pub threads: Option<u32>,
+    /// Projection method (default: the scene's).
+    #[arg(long, value_enum)]
+    pub method: Option<Method>,
+}
+
+impl Overrides {
+    /// Applies the overrides to a solver.
+    pub fn apply(&self, solver: &mut Solver) {
+        if let Some(i) = self.iterations {
+            solver.settings.iterations = i;
+        }
+        if let Some(t) = self.threads {
+            solver.settings.threads = t;
+        }
+        if let Some(m) = self.method {
+            solver.settings.method = m.into();
+        }
+    }
 }
 
 /// One run: per-block ms/frame and wall ms/frame.
@@ -52,12 +94,7 @@ fn run_once(
     timers: bool,
 ) -> Result<RunResult, Box<dyn Error>> {
     let (_, mut solver) = load_solver(scene)?;
-    if let Some(i) = overrides.iterations {
-        solver.settings.iterations = i;
-    }
-    if let Some(t) = overrides.threads {
-        solver.settings.threads = t;
-    }
+    overrides.apply(&mut solver);
     solver.settings.timers = timers;
     // Warm-up frame links targets and faults pages in.
     solver.step();
@@ -80,6 +117,7 @@ fn run_once(
         iterations: solver.settings.iterations as usize,
         clock_reads: solver.timings().clock_reads,
         threads: solver.settings.threads,
+        method: solver.settings.method,
     })
 }
 
@@ -149,6 +187,7 @@ pub fn run(
     let mut walls = Vec::new();
     let mut untimed = Vec::new();
     let (mut constraints, mut iters, mut reads_per_frame, mut threads) = (0, 0, 0, 1);
+    let mut method = SolverMethod::Sequential;
     for _ in 0..runs {
         let r = run_once(scene, frames, overrides, true)?;
         for (k, v) in r.blocks.iter().enumerate() {
@@ -157,13 +196,15 @@ pub fn run(
         walls.push(r.wall);
         (constraints, iters, reads_per_frame, threads) =
             (r.constraints, r.iterations, r.clock_reads, r.threads);
+        method = r.method;
         if timer_overhead {
             untimed.push(run_once(scene, frames, overrides, false)?.wall);
         }
     }
     let wall = median(walls);
     println!(
-        "scene {scene}: {constraints} constraints, {iters} iterations, {frames} frames × {runs} runs (medians), {}",
+        "scene {scene}: {constraints} constraints, {iters} iterations, {:?}, {frames} frames × {runs} runs (medians), {}",
+        method,
         match threads {
             0 => format!("{} threads (every core)", rayon_cores()),
             1 => "1 thread".to_string(),

@@ -1,6 +1,7 @@
 //! `check`: run a scene and report the figures the anatomy scenes are judged
 //! by (finiteness, attachment error, penetration, volume, activation, bulge).
 
+use crate::bench::Overrides;
 use crate::commands::{load_solver, write_stdout};
 use sinew_core::analysis::RunMetrics;
 use std::error::Error;
@@ -12,8 +13,15 @@ type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
 /// Runs `frames` frames (default: the scene's) and prints the report.
 /// `every` checks penetration on every n-th frame.
-pub fn run(scene: &str, frames: Option<u32>, every: u32, depth_mm: f32) -> Result<ExitCode> {
+pub fn run(
+    scene: &str,
+    frames: Option<u32>,
+    every: u32,
+    depth_mm: f32,
+    overrides: Overrides,
+) -> Result<ExitCode> {
     let (scene, mut solver) = load_solver(scene)?;
+    overrides.apply(&mut solver);
     let frames = frames.unwrap_or(scene.frames.max(1));
     let mut metrics = RunMetrics::new(&solver, depth_mm * 1e-3);
     metrics.penetration_every = every.max(1);

@@ -52,12 +52,8 @@ enum Command {
         /// Measured runs (the median is reported).
         #[arg(long, default_value_t = 7)]
         runs: u32,
-        /// Override the global iteration count.
-        #[arg(long)]
-        iterations: Option<u32>,
-        /// Worker threads (0 = every core); default: the scene's.
-        #[arg(long)]
-        threads: Option<u32>,
+        #[command(flatten)]
+        overrides: bench::Overrides,
         /// Also time with block timers off, to show their overhead.
         #[arg(long)]
         timer_overhead: bool,
@@ -84,6 +80,8 @@ enum Command {
         /// Penetration depth counted, in millimetres.
         #[arg(long, default_value_t = 2.0)]
         depth_mm: f32,
+        #[command(flatten)]
+        overrides: bench::Overrides,
     },
     /// Simulate to a frame and draw bones and muscles into a PNG (software
     /// rasteriser: no GPU or window needed).
@@ -129,19 +127,9 @@ fn main() -> ExitCode {
             scene,
             frames,
             runs,
-            iterations,
-            threads,
+            overrides,
             timer_overhead,
-        } => bench::run(
-            &scene,
-            frames,
-            runs,
-            bench::Overrides {
-                iterations,
-                threads,
-            },
-            timer_overhead,
-        ),
+        } => bench::run(&scene, frames, runs, overrides, timer_overhead),
         Command::Scene { name, out } => commands::write_builtin(&name, &out),
         Command::Render {
             scene,
@@ -157,7 +145,8 @@ fn main() -> ExitCode {
             frames,
             every,
             depth_mm,
-        } => check::run(&scene, frames, every, depth_mm),
+            overrides,
+        } => check::run(&scene, frames, every, depth_mm, overrides),
         Command::ImportMjcf { input, args } => import::run(&input, &args),
     };
     match result {

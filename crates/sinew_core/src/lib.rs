@@ -54,4 +54,4 @@ pub mod target;
 
 pub use error::{BuildError, ImportError, MeshError, SceneError};
 pub use glam;
-pub use solver::{Solver, SolverMethod, SolverSettings, StepTimings};
+pub use solver::{ColorScope, Solver, SolverMethod, SolverSettings, StepTimings};

@@ -228,6 +228,9 @@ pub struct Muscle {
     pub maps: VertexMaps,
     /// Activation was outside [0, 1] and has been reported.
     pub activation_reported: bool,
+    /// Colour groups for [`crate::SolverMethod::Colored`], built on first use
+    /// and dropped when the target connections are rebuilt.
+    pub colors: Option<crate::solver::coloring::ColoredState>,
 }
 
 impl Muscle {
@@ -376,6 +379,7 @@ impl Muscle {
             closest: Vec::new(),
             maps,
             activation_reported: false,
+            colors: None,
         };
         muscle.build_own_constraints(closed);
         for (a, v) in attachments.iter().zip(attach_vertices) {

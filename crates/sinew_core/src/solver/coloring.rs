@@ -15,7 +15,7 @@
 //! number of surface vertices tied to one internal point (SPEC §9.3,
 //! Appendix A: 65 groups for the biceps, 16 of them with one constraint).
 
-use crate::constraints::ConstraintKind;
+use crate::constraints::{ConstraintKind, Correction};
 use crate::muscle::Muscle;
 
 /// One constraint of a muscle: its type and index in that type's batch.
@@ -112,6 +112,94 @@ impl ColorGroups {
     /// Group sizes, in solve order.
     pub fn sizes(&self) -> Vec<usize> {
         self.groups.iter().map(Vec::len).collect()
+    }
+}
+
+/// A muscle's colour groups and the scratch a parallel sweep writes into.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ColoredState {
+    /// The groups.
+    pub groups: ColorGroups,
+    /// One slot per constraint of the largest group.
+    corrections: Vec<Option<Correction>>,
+}
+
+impl ColoredState {
+    /// Greedy groups of `m` in `order` (see [`ColorGroups::greedy`]).
+    pub fn new(m: &Muscle, order: &[ConstraintKind]) -> Self {
+        let groups = ColorGroups::greedy(m, order);
+        let largest = groups.groups.iter().map(Vec::len).max().unwrap_or(0);
+        Self {
+            groups,
+            corrections: vec![None; largest],
+        }
+    }
+}
+
+/// Groups smaller than this are computed on the calling thread: below it the
+/// fork and join cost more than the work.
+pub const PARALLEL_GROUP: usize = 256;
+
+/// Projection of constraint `c` of `m` at the current predictions, not yet
+/// written (Volume has none: it is solved apart).
+pub fn correction(m: &Muscle, c: ConstraintRef, inv_h2: f32) -> Option<Correction> {
+    let (k, p, w, i) = (&m.constraints, &m.p, &m.w, c.index as usize);
+    match c.kind {
+        ConstraintKind::Attach => k.attach.correction(i, p, w, inv_h2),
+        ConstraintKind::BranchAttach => k.branch_attach.correction(i, p, w, inv_h2),
+        ConstraintKind::Hard => k.hard.correction(i, p, w, inv_h2),
+        ConstraintKind::Soft => k.soft.correction(i, p, w, inv_h2),
+        ConstraintKind::Sliding => k.sliding.correction(i, p, w, inv_h2),
+        ConstraintKind::Branch => k.branch.correction(i, p, w, inv_h2),
+        ConstraintKind::Internal => k.internal.correction(i, p, w, inv_h2),
+        ConstraintKind::Fiber => k.fiber.correction(i, p, w, inv_h2),
+        ConstraintKind::Volume => None,
+    }
+}
+
+/// Writes a correction of constraint `c` of `m`.
+pub fn commit(m: &mut Muscle, c: ConstraintRef, correction: &Correction) {
+    let (k, p, i) = (&mut m.constraints, &mut m.p, c.index as usize);
+    match c.kind {
+        ConstraintKind::Attach => k.attach.commit(i, correction, p),
+        ConstraintKind::BranchAttach => k.branch_attach.commit(i, correction, p),
+        ConstraintKind::Hard => k.hard.commit(i, correction, p),
+        ConstraintKind::Soft => k.soft.commit(i, correction, p),
+        ConstraintKind::Sliding => k.sliding.commit(i, correction, p),
+        ConstraintKind::Branch => k.branch.commit(i, correction, p),
+        ConstraintKind::Internal => k.internal.commit(i, correction, p),
+        ConstraintKind::Fiber => k.fiber.commit(i, correction, p),
+        ConstraintKind::Volume => {}
+    }
+}
+
+/// One coloured sweep over every constraint of `m` but Volume: the groups
+/// one after the other; inside a group every correction is computed from the
+/// same positions, in parallel when `parallel` and the group is large, then
+/// written. Constraints of a group share no particle, so this is
+/// Gauss–Seidel in group order, and the same for any thread count.
+pub fn project_colored(m: &mut Muscle, state: &mut ColoredState, inv_h2: f32, parallel: bool) {
+    use rayon::prelude::*;
+    for group in &state.groups.groups {
+        if parallel && group.len() >= PARALLEL_GROUP {
+            let slots = &mut state.corrections[..group.len()];
+            let muscle: &Muscle = m;
+            slots
+                .par_iter_mut()
+                .zip(group.par_iter())
+                .for_each(|(slot, &c)| *slot = correction(muscle, c, inv_h2));
+            for (slot, &c) in slots.iter().zip(group) {
+                if let Some(corr) = slot {
+                    commit(m, c, corr);
+                }
+            }
+        } else {
+            for &c in group {
+                if let Some(corr) = correction(m, c, inv_h2) {
+                    commit(m, c, &corr);
+                }
+            }
+        }
     }
 }
 

@@ -44,6 +44,22 @@ pub enum SolverMethod {
     /// reference: bit-identical run to run.
     #[default]
     Sequential,
+    /// Graph colouring (SPEC §9.3, the thesis' SMT-G): each muscle's
+    /// constraints in greedy first-fit colour groups, the groups one after
+    /// the other and each group's constraints in parallel. Volume and the
+    /// bone contacts are solved after the groups, as in `Sequential`.
+    Colored {
+        /// Which constraints are coloured together.
+        scope: ColorScope,
+    },
+}
+
+/// What a colouring spans.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ColorScope {
+    /// One colouring per muscle (the thesis).
+    #[default]
+    PerMuscle,
 }
 
 /// Global solver settings.
@@ -657,6 +673,8 @@ impl Solver {
                 };
                 let targets = &self.targets;
                 let order = &self.settings.projection_order;
+                let method = self.settings.method;
+                let parallel = self.pool.is_some();
                 let active =
                     |m: &Muscle| it < m.params.iterations.unwrap_or(global_iterations) as usize;
                 // Closest data, then projection, muscle by muscle: a muscle
@@ -670,7 +688,7 @@ impl Solver {
                 clock.lap(&mut timings.closest_data);
                 for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
                     if active(m) {
-                        project_iteration(m, order, targets, inv_h2);
+                        project_iteration(m, method, order, targets, inv_h2, parallel);
                     }
                 });
                 clock.lap(&mut timings.project);
@@ -868,15 +886,30 @@ fn for_each_muscle(
 /// volume exact while moving vertices far less than the contacts did).
 fn project_iteration(
     m: &mut Muscle,
+    method: SolverMethod,
     order: &[ConstraintKind],
     targets: &[TargetSurface],
     inv_h2: f32,
+    parallel: bool,
 ) {
     let (body, volume_last) = match order.split_last() {
         Some((ConstraintKind::Volume, rest)) => (rest, true),
         _ => (order, false),
     };
-    project(m, body, inv_h2);
+    match method {
+        SolverMethod::Sequential => project(m, body, inv_h2),
+        SolverMethod::Colored { .. } => {
+            let mut state = m
+                .colors
+                .take()
+                .unwrap_or_else(|| coloring::ColoredState::new(m, order));
+            coloring::project_colored(m, &mut state, inv_h2, parallel);
+            m.colors = Some(state);
+            if !volume_last && order.contains(&ConstraintKind::Volume) {
+                project(m, &[ConstraintKind::Volume], inv_h2);
+            }
+        }
+    }
     bone_contacts(m, targets);
     if volume_last {
         project(m, &[ConstraintKind::Volume], inv_h2);
@@ -953,6 +986,7 @@ fn link_muscle(m: &mut Muscle, targets: &[TargetSurface]) {
     c.hard = Default::default();
     c.soft_anchor.clear();
     c.hard_anchor.clear();
+    m.colors = None;
     m.closest = vec![None; n * nt];
     if nt == 0 {
         return;
