@@ -27,7 +27,7 @@
 //! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
 //! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
-use super::{Correction, delta_lambda};
+use super::{ConstraintBatch, Correction, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -158,18 +158,18 @@ impl DistanceBatch {
     pub fn value(&self, i: usize, p: &[Vec3]) -> f32 {
         (p[self.a[i] as usize] - p[self.b[i] as usize]).length() - self.rest[i]
     }
+}
 
-    /// One Gauss–Seidel pass over the batch.
-    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
-        for i in 0..self.a.len() {
-            if let Some(c) = self.correction(i, p, w, inv_dt2) {
-                self.commit(i, &c, p);
-            }
-        }
+impl ConstraintBatch for DistanceBatch {
+    fn count(&self) -> usize {
+        self.a.len()
     }
 
-    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
-    pub fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+    fn lambdas_mut(&mut self) -> &mut [f32] {
+        &mut self.lambda
+    }
+
+    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
         let alpha = self.compliance * inv_dt2;
         let (ia, ib) = (self.a[i] as usize, self.b[i] as usize);
         let d = p[ia] - p[ib];
@@ -185,11 +185,5 @@ impl DistanceBatch {
         let mut to_b = p[ib];
         to_b -= wb * n;
         Some(Correction::two(dl, (self.a[i], to_a), (self.b[i], to_b)))
-    }
-
-    /// Writes a correction of constraint `i`.
-    pub fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
-        self.lambda[i] += c.dlambda;
-        c.write(p);
     }
 }

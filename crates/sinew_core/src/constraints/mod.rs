@@ -164,6 +164,35 @@ impl Correction {
     }
 }
 
+/// A batch of constraints of one type, projected one at a time
+/// (Gauss–Seidel, [`ConstraintBatch::solve`]) or a colour group at a time
+/// (compute every [`Correction`], then [`ConstraintBatch::commit`] them).
+pub trait ConstraintBatch {
+    /// Number of constraints.
+    fn count(&self) -> usize;
+
+    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
+    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction>;
+
+    /// The accumulated multipliers.
+    fn lambdas_mut(&mut self) -> &mut [f32];
+
+    /// Writes a correction of constraint `i`.
+    fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
+        self.lambdas_mut()[i] += c.dlambda;
+        c.write(p);
+    }
+
+    /// One Gauss–Seidel pass over the batch.
+    fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        for i in 0..self.count() {
+            if let Some(c) = self.correction(i, p, w, inv_dt2) {
+                self.commit(i, &c, p);
+            }
+        }
+    }
+}
+
 /// The XPBD multiplier increment (SPEC §3.1). Returns 0 for a singular system.
 #[inline(always)]
 pub fn delta_lambda(c: f32, lambda: f32, weighted_gradient_sq: f32, alpha_tilde: f32) -> f32 {

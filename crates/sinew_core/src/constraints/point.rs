@@ -8,7 +8,7 @@
 //! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
 //! ```
 
-use super::{Correction, delta_lambda};
+use super::{ConstraintBatch, Correction, delta_lambda};
 use glam::Vec3;
 
 /// A batch of single-particle constraints towards goal points.
@@ -51,18 +51,18 @@ impl PointBatch {
     pub fn value(&self, i: usize, p: &[Vec3]) -> f32 {
         (p[self.particle[i] as usize] - self.goal[i]).length() - self.rest[i]
     }
+}
 
-    /// One Gauss–Seidel pass over the batch.
-    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
-        for i in 0..self.particle.len() {
-            if let Some(c) = self.correction(i, p, w, inv_dt2) {
-                self.commit(i, &c, p);
-            }
-        }
+impl ConstraintBatch for PointBatch {
+    fn count(&self) -> usize {
+        self.particle.len()
     }
 
-    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
-    pub fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+    fn lambdas_mut(&mut self) -> &mut [f32] {
+        &mut self.lambda
+    }
+
+    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
         let alpha = self.compliance[i] * inv_dt2;
         if !alpha.is_finite() {
             return None;
@@ -77,11 +77,5 @@ impl PointBatch {
         let mut to = p[k];
         to += d * (w[k] * dl / len);
         Some(Correction::one(dl, self.particle[i], to))
-    }
-
-    /// Writes a correction of constraint `i`.
-    pub fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
-        self.lambda[i] += c.dlambda;
-        c.write(p);
     }
 }

@@ -13,7 +13,7 @@
 //! non-compliant position projection (bones do not give way), then the
 //! compliant gap equality acts as usual.
 
-use super::{Correction, delta_lambda};
+use super::{ConstraintBatch, Correction, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -85,18 +85,18 @@ impl SlidingBatch {
         }
         Some((len - gap, d / len))
     }
+}
 
-    /// One Gauss–Seidel pass.
-    pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
-        for i in 0..self.particle.len() {
-            if let Some(c) = self.correction(i, p, w, inv_dt2) {
-                self.commit(i, &c, p);
-            }
-        }
+impl ConstraintBatch for SlidingBatch {
+    fn count(&self) -> usize {
+        self.particle.len()
     }
 
-    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
-    pub fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+    fn lambdas_mut(&mut self) -> &mut [f32] {
+        &mut self.lambda
+    }
+
+    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
         let alpha = self.compliance[i] * inv_dt2;
         if !alpha.is_finite() {
             return None;
@@ -122,11 +122,5 @@ impl SlidingBatch {
         }
         x += g * (w[k] * dl);
         Some(Correction::one(dl, self.particle[i], x))
-    }
-
-    /// Writes a correction of constraint `i`.
-    pub fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
-        self.lambda[i] += c.dlambda;
-        c.write(p);
     }
 }

@@ -15,7 +15,7 @@
 //! number of surface vertices tied to one internal point (SPEC §9.3,
 //! Appendix A: 65 groups for the biceps, 16 of them with one constraint).
 
-use crate::constraints::{ConstraintKind, Correction};
+use crate::constraints::{ConstraintBatch, ConstraintKind, Correction};
 use crate::muscle::Muscle;
 
 /// One constraint of a muscle: its type and index in that type's batch.

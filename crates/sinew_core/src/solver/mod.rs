@@ -27,7 +27,7 @@ pub use timings::StepTimings;
 use timings::Stopwatch;
 
 use crate::animation::{Curve, TransformTrack, interpolate_rigid};
-use crate::constraints::ConstraintKind;
+use crate::constraints::{ConstraintBatch, ConstraintKind};
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use crate::muscle::{Muscle, MuscleDesc, SurfaceAnchor, TargetRef};

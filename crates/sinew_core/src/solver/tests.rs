@@ -301,8 +301,14 @@ fn hard_attachments_hold_exactly_while_the_muscle_hangs() {
 
 /// Positions after `frames` frames of a built-in scene with `threads` workers.
 fn positions_with_threads(scene: &str, threads: u32, frames: usize) -> Vec<u32> {
+    positions(scene, SolverMethod::Sequential, threads, frames)
+}
+
+/// Positions (as bits) after `frames` frames of a built-in scene under gravity.
+fn positions(scene: &str, method: SolverMethod, threads: u32, frames: usize) -> Vec<u32> {
     let mut scene = builtin(scene).unwrap();
     scene.settings.threads = threads;
+    scene.settings.method = method;
     scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
     let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
     for _ in 0..frames {
@@ -355,20 +361,10 @@ fn changing_the_thread_count_between_frames_changes_nothing() {
 }
 
 fn colored(threads: u32, scene: &str, frames: usize) -> Vec<u32> {
-    let mut scene = builtin(scene).unwrap();
-    scene.settings.threads = threads;
-    scene.settings.method = SolverMethod::Colored {
+    let method = SolverMethod::Colored {
         scope: ColorScope::PerMuscle,
     };
-    scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
-    let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
-    for _ in 0..frames {
-        s.step();
-    }
-    s.muscles()
-        .iter()
-        .flat_map(|m| m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)))
-        .collect()
+    positions(scene, method, threads, frames)
 }
 
 #[test]
