@@ -44,21 +44,24 @@ pub enum Method {
     Sequential,
     /// Per-muscle colour groups, each group in parallel.
     Colored,
+    /// Jacobi averaging with over-relaxation `--omega`.
+    Jacobi,
 }
 
-impl From<Method> for SolverMethod {
-    fn from(m: Method) -> Self {
-        match m {
+impl Method {
+    fn solver_method(self, omega: f32) -> SolverMethod {
+        match self {
             Method::Sequential => SolverMethod::Sequential,
             Method::Colored => SolverMethod::Colored {
                 scope: ColorScope::PerMuscle,
             },
+            Method::Jacobi => SolverMethod::Jacobi { omega },
         }
     }
 }
 
 /// Settings a benchmark or check overrides in the scene.
-#[derive(Clone, Copy, Debug, Default, clap::Args)]
+#[derive(Clone, Copy, Debug, clap::Args)]
 pub struct Overrides {
     /// Global iteration count (default: the scene's).
     #[arg(long)]
@@ -69,6 +72,9 @@ pub struct Overrides {
     /// Projection method (default: the scene's).
     #[arg(long, value_enum)]
     pub method: Option<Method>,
+    /// Jacobi over-relaxation ω in [1, 2].
+    #[arg(long, default_value_t = 1.5)]
+    pub omega: f32,
 }
 
 impl Overrides {
@@ -81,7 +87,7 @@ impl Overrides {
             solver.settings.threads = t;
         }
         if let Some(m) = self.method {
-            solver.settings.method = m.into();
+            solver.settings.method = m.solver_method(self.omega);
         }
     }
 }

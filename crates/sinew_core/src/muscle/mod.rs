@@ -231,6 +231,9 @@ pub struct Muscle {
     /// Colour groups for [`crate::SolverMethod::Colored`], built on first use
     /// and dropped when the target connections are rebuilt.
     pub colors: Option<crate::solver::coloring::ColoredState>,
+    /// Incidence and scratch for [`crate::SolverMethod::Jacobi`], built on
+    /// first use and dropped when the target connections are rebuilt.
+    pub jacobi: Option<crate::solver::jacobi::JacobiState>,
 }
 
 impl Muscle {
@@ -380,6 +383,7 @@ impl Muscle {
             maps,
             activation_reported: false,
             colors: None,
+            jacobi: None,
         };
         muscle.build_own_constraints(closed);
         for (a, v) in attachments.iter().zip(attach_vertices) {

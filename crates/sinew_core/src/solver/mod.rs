@@ -20,6 +20,7 @@
 //! iteration and the result deterministic.
 
 pub mod coloring;
+pub mod jacobi;
 mod momentum;
 mod timings;
 
@@ -38,7 +39,7 @@ use glam::{Affine3A, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// How constraints are projected.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub enum SolverMethod {
     /// Gauss–Seidel, one muscle after another, in the canonical order. The
     /// reference: bit-identical run to run.
@@ -51,6 +52,16 @@ pub enum SolverMethod {
     Colored {
         /// Which constraints are coloured together.
         scope: ColorScope,
+    },
+    /// Jacobi (SPEC §9.2, the thesis' SMT-J): the attachments solved
+    /// Gauss–Seidel first, every other constraint (but Volume) computed from
+    /// the same positions, in parallel, and each particle moved by `omega`
+    /// times the mean of its corrections. The per-particle sum is a gather in
+    /// a fixed order (no float atomics), so any thread count gives the same
+    /// bits. Volume and the bone contacts follow, as in `Sequential`.
+    Jacobi {
+        /// Over-relaxation ω ∈ [1, 2].
+        omega: f32,
     },
 }
 
@@ -133,6 +144,11 @@ impl SolverSettings {
         };
         if !(self.dt > 0.0 && self.dt.is_finite()) {
             return Err(bad("dt", self.dt, "must be finite and > 0"));
+        }
+        if let SolverMethod::Jacobi { omega } = self.method
+            && !(1.0..=2.0).contains(&omega)
+        {
+            return Err(bad("method.omega", omega, "must be in [1, 2]"));
         }
         if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
             return Err(bad("time_scale", self.time_scale, "must be finite and > 0"));
@@ -909,6 +925,17 @@ fn project_iteration(
                 project(m, &[ConstraintKind::Volume], inv_h2);
             }
         }
+        SolverMethod::Jacobi { omega } => {
+            let mut state = m
+                .jacobi
+                .take()
+                .unwrap_or_else(|| jacobi::JacobiState::new(m, order));
+            jacobi::project_jacobi(m, &mut state, inv_h2, omega, parallel);
+            m.jacobi = Some(state);
+            if !volume_last && order.contains(&ConstraintKind::Volume) {
+                project(m, &[ConstraintKind::Volume], inv_h2);
+            }
+        }
     }
     bone_contacts(m, targets);
     if volume_last {
@@ -987,6 +1014,7 @@ fn link_muscle(m: &mut Muscle, targets: &[TargetSurface]) {
     c.soft_anchor.clear();
     c.hard_anchor.clear();
     m.colors = None;
+    m.jacobi = None;
     m.closest = vec![None; n * nt];
     if nt == 0 {
         return;

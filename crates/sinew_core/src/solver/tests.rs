@@ -426,3 +426,52 @@ fn colored_contracts_t1_like_sequential() {
         "{coloured} vs {reference}"
     );
 }
+
+#[test]
+fn jacobi_is_bit_identical_for_1_2_and_8_threads() {
+    let method = SolverMethod::Jacobi { omega: 1.5 };
+    let one = positions("P3", method, 1, 30);
+    assert_eq!(one, positions("P3", method, 2, 30));
+    assert_eq!(one, positions("P3", method, 8, 30));
+    let finite = one.iter().all(|&b| f32::from_bits(b).is_finite());
+    assert!(finite);
+}
+
+#[test]
+fn jacobi_contracts_t1_and_rejects_a_bad_omega() {
+    let length = |method: SolverMethod| {
+        let mut scene = builtin("T1").unwrap();
+        scene.settings.method = method;
+        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+        for _ in 0..45 {
+            s.step();
+        }
+        let m = &s.muscles()[0];
+        let (lo, hi) = crate::mesh::bounds_of(&m.x[..m.surface_count]);
+        (hi - lo).x
+    };
+    let rest = {
+        let s = builtin("T1")
+            .unwrap()
+            .instantiate(std::path::Path::new("."))
+            .unwrap();
+        let m = &s.muscles()[0];
+        let (lo, hi) = crate::mesh::bounds_of(&m.x[..m.surface_count]);
+        (hi - lo).x
+    };
+    let reference = length(SolverMethod::Sequential);
+    let jacobi = length(SolverMethod::Jacobi { omega: 1.5 });
+    // Jacobi converges more slowly but must contract the oval too.
+    assert!(jacobi < rest * 0.9, "{jacobi} vs rest {rest}");
+    assert!(
+        (jacobi - reference).abs() / reference < 0.15,
+        "{jacobi} vs {reference}"
+    );
+    let mut settings = SolverSettings {
+        method: SolverMethod::Jacobi { omega: 2.5 },
+        ..Default::default()
+    };
+    assert!(Solver::new(settings.clone()).is_err());
+    settings.method = SolverMethod::Jacobi { omega: f32::NAN };
+    assert!(Solver::new(settings).is_err());
+}

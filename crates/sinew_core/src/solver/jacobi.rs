@@ -1,0 +1,177 @@
+//! Jacobi projection with a deterministic gather (SPEC §9.2).
+//!
+//! Attachments (Attach, BranchAttach) are solved Gauss–Seidel first. Every
+//! other constraint but Volume then computes its [`Correction`] from the same
+//! positions; each particle takes the corrections that move it, in a fixed
+//! order from a particle → (constraint, slot) incidence list built once, and
+//! moves by `ω / nᵢ` times their sum. Nothing is accumulated with atomics, so
+//! the result is the same for any thread count.
+
+use super::coloring::{ConstraintRef, commit, constraints_in_order, correction, particles_of};
+use crate::constraints::{ConstraintKind, Correction};
+use crate::muscle::Muscle;
+use glam::Vec3;
+
+/// A muscle's Jacobi split, incidence and scratch.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct JacobiState {
+    /// Solved Gauss–Seidel, first (the attachments).
+    pub gauss_seidel: Vec<ConstraintRef>,
+    /// Solved Jacobi.
+    pub jacobi: Vec<ConstraintRef>,
+    /// CSR offsets of each particle's incidence entries.
+    offsets: Vec<u32>,
+    /// `(index into jacobi, slot in its Correction)`, per particle.
+    entries: Vec<(u32, u8)>,
+    /// One slot per Jacobi constraint.
+    corrections: Vec<Option<Correction>>,
+}
+
+impl JacobiState {
+    /// Splits `m`'s constraints (but Volume) in `order` and builds the incidence.
+    pub fn new(m: &Muscle, order: &[ConstraintKind]) -> Self {
+        let (gauss_seidel, jacobi): (Vec<_>, Vec<_>) =
+            constraints_in_order(m, order).into_iter().partition(|c| {
+                matches!(
+                    c.kind,
+                    ConstraintKind::Attach | ConstraintKind::BranchAttach
+                )
+            });
+        let n = m.x.len();
+        let mut count = vec![0u32; n + 1];
+        for c in &jacobi {
+            for p in particles_of(m, *c).iter().flatten() {
+                count[*p as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let offsets = count.clone();
+        let mut fill = count;
+        let mut entries = vec![(0u32, 0u8); offsets[n] as usize];
+        for (j, c) in jacobi.iter().enumerate() {
+            for (slot, p) in particles_of(m, *c).iter().enumerate() {
+                if let Some(p) = p {
+                    let at = &mut fill[*p as usize];
+                    entries[*at as usize] = (j as u32, slot as u8);
+                    *at += 1;
+                }
+            }
+        }
+        Self {
+            corrections: vec![None; jacobi.len()],
+            gauss_seidel,
+            jacobi,
+            offsets,
+            entries,
+        }
+    }
+
+    /// Jacobi constraints that move particle `p` (its `nᵢ`).
+    pub fn degree(&self, p: usize) -> usize {
+        (self.offsets[p + 1] - self.offsets[p]) as usize
+    }
+}
+
+/// The position a correction gives particle `p`, from `slot` of it.
+fn moved_to(c: &Correction, slot: u8) -> Vec3 {
+    c.moves[slot as usize].1
+}
+
+/// One Jacobi iteration of `m` (see the module docs). `parallel` computes the
+/// corrections and the gather on the current rayon pool.
+pub fn project_jacobi(
+    m: &mut Muscle,
+    state: &mut JacobiState,
+    inv_h2: f32,
+    omega: f32,
+    parallel: bool,
+) {
+    use rayon::prelude::*;
+    for &c in &state.gauss_seidel {
+        if let Some(corr) = correction(m, c, inv_h2) {
+            commit(m, c, &corr);
+        }
+    }
+    {
+        let muscle: &Muscle = m;
+        let compute = |(slot, c): (&mut Option<Correction>, &ConstraintRef)| {
+            *slot = correction(muscle, *c, inv_h2);
+        };
+        if parallel {
+            state
+                .corrections
+                .par_iter_mut()
+                .zip(state.jacobi.par_iter())
+                .for_each(compute);
+        } else {
+            state
+                .corrections
+                .iter_mut()
+                .zip(state.jacobi.iter())
+                .for_each(compute);
+        }
+    }
+    // Multipliers: each constraint keeps its own increment.
+    for (c, corr) in state.jacobi.iter().zip(&state.corrections) {
+        if let Some(corr) = corr {
+            let lambda_only = Correction { count: 0, ..*corr };
+            commit(m, *c, &lambda_only);
+        }
+    }
+    // Gather: particle i moves by ω/nᵢ Σ (its corrections − its position).
+    let (offsets, entries, corrections) = (&state.offsets, &state.entries, &state.corrections);
+    let gather = |(i, p): (usize, &mut Vec3)| {
+        let (a, b) = (offsets[i] as usize, offsets[i + 1] as usize);
+        if a == b {
+            return;
+        }
+        let mut sum = Vec3::ZERO;
+        for &(j, slot) in &entries[a..b] {
+            if let Some(c) = &corrections[j as usize] {
+                sum += moved_to(c, slot) - *p;
+            }
+        }
+        *p += sum * (omega / (b - a) as f32);
+    };
+    if parallel {
+        m.p.par_iter_mut().enumerate().for_each(gather);
+    } else {
+        m.p.iter_mut().enumerate().for_each(gather);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+
+    #[test]
+    fn incidence_lists_every_particle_of_every_jacobi_constraint_once() {
+        let solver = builtin("P3")
+            .unwrap()
+            .instantiate(std::path::Path::new("."))
+            .unwrap();
+        for m in solver.muscles() {
+            let state = JacobiState::new(m, &ConstraintKind::CANONICAL_ORDER);
+            let touches: usize = state
+                .jacobi
+                .iter()
+                .map(|c| particles_of(m, *c).iter().flatten().count())
+                .sum();
+            assert_eq!(state.entries.len(), touches);
+            let degrees: usize = (0..m.x.len()).map(|p| state.degree(p)).sum();
+            assert_eq!(degrees, touches);
+            assert!(state.gauss_seidel.iter().all(|c| matches!(
+                c.kind,
+                ConstraintKind::Attach | ConstraintKind::BranchAttach
+            )));
+            let counts = m.counts();
+            assert_eq!(
+                state.gauss_seidel.len() + state.jacobi.len(),
+                counts.total() - counts.get(ConstraintKind::Volume)
+            );
+        }
+    }
+}
