@@ -60,6 +60,11 @@ pub fn run(
     )?;
     writeln!(
         out,
+        "jiggle                 {:.3} m/s² RMS surface acceleration in the bone frame",
+        metrics.jiggle_rms()
+    )?;
+    writeln!(
+        out,
         "penetration > {depth_mm} mm     max {:.2} % of surface vertices (frame {}, checked every {} frame(s))",
         metrics.penetration_max * 100.0,
         metrics.penetration_frame,

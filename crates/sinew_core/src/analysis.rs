@@ -157,6 +157,12 @@ pub struct RunMetrics {
     pub muscle_penetration_max: Vec<f32>,
     /// Muscle of each attachment, in [`attachment_errors`] order.
     attachment_owner: Vec<usize>,
+    /// Jiggle: sum of squared surface-vertex accelerations measured in the
+    /// frame of each muscle's first attached bone, and the sample count.
+    jiggle_sum: f64,
+    jiggle_samples: u64,
+    /// The last two frames' vertex positions in those bone frames.
+    history: [Vec<glam::Vec3>; 2],
 }
 
 impl RunMetrics {
@@ -185,6 +191,9 @@ impl RunMetrics {
                 .enumerate()
                 .flat_map(|(i, m)| std::iter::repeat_n(i, m.attachments.len()))
                 .collect(),
+            jiggle_sum: 0.0,
+            jiggle_samples: 0,
+            history: [Vec::new(), Vec::new()],
         }
     }
 
@@ -202,6 +211,7 @@ impl RunMetrics {
         if !finite {
             return;
         }
+        self.observe_jiggle(solver);
         for (i, e) in attachment_errors(solver).enumerate() {
             self.attachment_error_sum += f64::from(e);
             self.attachment_samples += 1;
@@ -240,6 +250,42 @@ impl RunMetrics {
         }
     }
 
+    /// Secondary motion: the RMS acceleration of surface vertices in the frame
+    /// of their muscle's first attached bone (so the bone's own motion does not
+    /// count), by second differences over frames. 0 for a muscle that moves
+    /// rigidly with its bone. Units: m/s².
+    pub fn jiggle_rms(&self) -> f32 {
+        (self.jiggle_sum / self.jiggle_samples.max(1) as f64).sqrt() as f32
+    }
+
+    fn observe_jiggle(&mut self, solver: &Solver) {
+        let dt = solver.settings.dt * solver.settings.time_scale;
+        let local: Vec<glam::Vec3> = solver
+            .muscles()
+            .iter()
+            .flat_map(|m| {
+                let frame = m
+                    .attachments
+                    .first()
+                    .and_then(|a| a.bone)
+                    .map_or(glam::Affine3A::IDENTITY, |b| solver.bones()[b].transform)
+                    .inverse();
+                m.x[..m.surface_count]
+                    .iter()
+                    .map(move |&x| frame.transform_point3(x))
+            })
+            .collect();
+        let [older, old] = &self.history;
+        if older.len() == local.len() && old.len() == local.len() {
+            for ((a, b), c) in older.iter().zip(old).zip(&local) {
+                let acceleration = (*c - 2.0 * *b + *a) / (dt * dt);
+                self.jiggle_sum += f64::from(acceleration.length_squared());
+                self.jiggle_samples += 1;
+            }
+        }
+        self.history = [std::mem::take(&mut self.history[1]), local];
+    }
+
     /// Mean attachment error. Units: m.
     pub fn attachment_error_mean(&self) -> f32 {
         (self.attachment_error_sum / self.attachment_samples.max(1) as f64) as f32
@@ -272,5 +318,27 @@ mod tests {
             Vec3::new(1.0, 1.0, 0.0),
         );
         assert!(b > a);
+    }
+
+    #[test]
+    fn jiggle_is_zero_at_rest_and_positive_when_the_muscle_swings() {
+        let mut still = crate::scene::builtin("P1").unwrap();
+        still.settings.gravity = Vec3::ZERO;
+        let mut solver = still.instantiate(std::path::Path::new(".")).unwrap();
+        let mut metrics = RunMetrics::new(&solver, 0.002);
+        for _ in 0..20 {
+            solver.step();
+            metrics.observe(&solver);
+        }
+        assert!(metrics.jiggle_rms() < 1e-3, "{}", metrics.jiggle_rms());
+        let mut moving = crate::scene::builtin("T1").unwrap();
+        moving.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+        let mut solver = moving.instantiate(std::path::Path::new(".")).unwrap();
+        let mut metrics = RunMetrics::new(&solver, 0.002);
+        for _ in 0..30 {
+            solver.step();
+            metrics.observe(&solver);
+        }
+        assert!(metrics.jiggle_rms() > 0.1, "{}", metrics.jiggle_rms());
     }
 }
