@@ -404,23 +404,28 @@ fn colored_groups_cover_every_constraint_once() {
     }
 }
 
+/// The T1 oval's length along its fibres after `frames` frames with `method`.
+fn t1_length(method: SolverMethod, frames: usize) -> f32 {
+    let mut scene = builtin("T1").unwrap();
+    scene.settings.method = method;
+    let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+    for _ in 0..frames {
+        s.step();
+    }
+    let m = &s.muscles()[0];
+    let (lo, hi) = crate::mesh::bounds_of(&m.x[..m.surface_count]);
+    (hi - lo).x
+}
+
 #[test]
 fn colored_contracts_t1_like_sequential() {
-    let length = |method: SolverMethod| {
-        let mut scene = builtin("T1").unwrap();
-        scene.settings.method = method;
-        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
-        for _ in 0..45 {
-            s.step();
-        }
-        let m = &s.muscles()[0];
-        let (lo, hi) = crate::mesh::bounds_of(&m.x[..m.surface_count]);
-        (hi - lo).x
-    };
-    let reference = length(SolverMethod::Sequential);
-    let coloured = length(SolverMethod::Colored {
-        scope: ColorScope::PerMuscle,
-    });
+    let reference = t1_length(SolverMethod::Sequential, 45);
+    let coloured = t1_length(
+        SolverMethod::Colored {
+            scope: ColorScope::PerMuscle,
+        },
+        45,
+    );
     assert!(
         (coloured - reference).abs() / reference < 0.03,
         "{coloured} vs {reference}"
@@ -439,28 +444,9 @@ fn jacobi_is_bit_identical_for_1_2_and_8_threads() {
 
 #[test]
 fn jacobi_contracts_t1_and_rejects_a_bad_omega() {
-    let length = |method: SolverMethod| {
-        let mut scene = builtin("T1").unwrap();
-        scene.settings.method = method;
-        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
-        for _ in 0..45 {
-            s.step();
-        }
-        let m = &s.muscles()[0];
-        let (lo, hi) = crate::mesh::bounds_of(&m.x[..m.surface_count]);
-        (hi - lo).x
-    };
-    let rest = {
-        let s = builtin("T1")
-            .unwrap()
-            .instantiate(std::path::Path::new("."))
-            .unwrap();
-        let m = &s.muscles()[0];
-        let (lo, hi) = crate::mesh::bounds_of(&m.x[..m.surface_count]);
-        (hi - lo).x
-    };
-    let reference = length(SolverMethod::Sequential);
-    let jacobi = length(SolverMethod::Jacobi { omega: 1.5 });
+    let rest = t1_length(SolverMethod::Sequential, 0);
+    let reference = t1_length(SolverMethod::Sequential, 45);
+    let jacobi = t1_length(SolverMethod::Jacobi { omega: 1.5 }, 45);
     // Jacobi converges more slowly but must contract the oval too.
     assert!(jacobi < rest * 0.9, "{jacobi} vs rest {rest}");
     assert!(
