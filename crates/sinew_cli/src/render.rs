@@ -4,7 +4,7 @@
 
 use crate::commands::load_solver;
 use sinew_core::Solver;
-use sinew_core::glam::{Mat3, Vec3};
+use sinew_core::glam::{Mat3, Vec2, Vec3};
 use sinew_core::target::TargetSource;
 use std::error::Error;
 use std::path::Path;
@@ -15,13 +15,13 @@ type Result<T> = std::result::Result<T, Box<dyn Error>>;
 /// Where the camera looks from.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum View {
-    /// From +Z (in front of a Y-up model facing +Z... or its side, depending on the model).
+    /// From +Z: the front of a Y-up body facing +Z (the imported anatomy).
     Front,
-    /// From +X.
+    /// From +X: the body's left side.
     Side,
-    /// From −X.
+    /// From −X: the body's right side.
     OtherSide,
-    /// From −Z.
+    /// From −Z: the back.
     Back,
 }
 
@@ -136,30 +136,19 @@ pub fn draw(solver: &Solver, view: View, width: u32, height: u32, bones: bool) -
         // Two-sided Lambert with ambient.
         let shade = 0.25 + 0.75 * n.dot(light).abs();
         let color = t.color.map(|k| (k * shade * 255.0).clamp(0.0, 255.0) as u8);
-        let min_x = s
+        // Pixel box of the triangle, clipped to the image.
+        let lo = s
             .iter()
-            .map(|v| v.0)
-            .fold(f32::INFINITY, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let max_x = s
+            .fold(Vec2::INFINITY, |m, v| m.min(Vec2::new(v.0, v.1)));
+        let hi = s
             .iter()
-            .map(|v| v.0)
-            .fold(f32::NEG_INFINITY, f32::max)
-            .ceil()
-            .min(w as f32 - 1.0);
-        let min_y = s
-            .iter()
-            .map(|v| v.1)
-            .fold(f32::INFINITY, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let max_y = s
-            .iter()
-            .map(|v| v.1)
-            .fold(f32::NEG_INFINITY, f32::max)
-            .ceil()
-            .min(h as f32 - 1.0);
+            .fold(Vec2::NEG_INFINITY, |m, v| m.max(Vec2::new(v.0, v.1)));
+        let (min_x, min_y) = (
+            lo.x.floor().max(0.0) as usize,
+            lo.y.floor().max(0.0) as usize,
+        );
+        let max_x = hi.x.ceil().min(w as f32 - 1.0);
+        let max_y = hi.y.ceil().min(h as f32 - 1.0);
         if max_x < 0.0 || max_y < 0.0 {
             continue;
         }

@@ -177,9 +177,7 @@ impl Skeleton {
                     "non-finite translation or rotation".into(),
                 ));
             }
-            let rotation = b
-                .rotation
-                .try_normalize_quat()
+            let rotation = normalized(b.rotation)
                 .ok_or_else(|| invalid(context(), "rotation has zero length".into()))?;
             let mut joints = Vec::with_capacity(b.joints.len());
             for j in &b.joints {
@@ -388,15 +386,10 @@ fn about(anchor: Vec3, rotation: Quat) -> Affine3A {
         * Affine3A::from_translation(-anchor)
 }
 
-trait TryNormalizeQuat {
-    fn try_normalize_quat(self) -> Option<Quat>;
-}
-
-impl TryNormalizeQuat for Quat {
-    fn try_normalize_quat(self) -> Option<Quat> {
-        let len = self.length();
-        (len > 1e-12 && len.is_finite()).then(|| self / len)
-    }
+/// `q` scaled to unit length, or `None` when its length is zero or not finite.
+fn normalized(q: Quat) -> Option<Quat> {
+    let len = q.length();
+    (len > 1e-12 && len.is_finite()).then(|| q / len)
 }
 
 #[cfg(test)]

@@ -228,14 +228,13 @@ impl Scene {
         self.check_names()?;
         let (bone_meshes, muscle_meshes) = self.load_meshes(base_dir)?;
         let mut solver = Solver::new(self.settings.clone())?;
-        let rig = self.skeleton.as_ref().map(Skeleton::compile).transpose()?;
-        if let Some(rig) = &rig {
-            solver.set_skeleton(rig.clone());
+        if let Some(skeleton) = &self.skeleton {
+            solver.set_skeleton(skeleton.compile()?);
         }
         for (b, mesh) in self.bones.iter().zip(&bone_meshes) {
             let index = solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref());
             if let Some(body) = &b.body {
-                let found = rig.as_ref().and_then(|r| r.body_index(body));
+                let found = solver.skeleton().and_then(|r| r.body_index(body));
                 let body = found.ok_or_else(|| SceneError::UnknownReference {
                     context: format!("bone '{}'", b.name),
                     kind: "skeleton body",

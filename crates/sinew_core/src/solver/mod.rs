@@ -631,9 +631,12 @@ impl Solver {
             }
         }
         if let Some(rig) = &mut self.activation_rig {
-            let poses: Vec<Affine3A> = self.bones.iter().map(|b| b.transform).collect();
+            // The substep buffer holds the frame-end poses until the first substep.
+            self.substep_poses.clear();
+            self.substep_poses
+                .extend(self.bones.iter().map(|b| b.transform));
             let muscles = &mut self.muscles;
-            rig.update(&poses, end_time, dt, |m, a| {
+            rig.update(&self.substep_poses, end_time, dt, |m, a| {
                 if let Some(m) = muscles.get_mut(m) {
                     m.params.activation = a;
                 }
