@@ -1,7 +1,7 @@
 //! `info`, `validate`, `bake` and `scene`.
 
 use sinew_core::constraints::{ConstraintCounts, ConstraintKind};
-use sinew_core::mesh::{LoadOptions, load_mesh};
+use sinew_core::mesh::{LoadOptions, append_obj, load_mesh};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
 use sinew_core::solver::coloring::ColorGroups;
 use sinew_core::{SceneError, Solver};
@@ -244,16 +244,13 @@ pub fn write_obj(solver: &Solver, path: &Path) -> std::io::Result<()> {
     let mut base = 1usize;
     for m in solver.muscles() {
         let _ = writeln!(text, "o {}", m.name);
-        for p in m.surface_positions() {
-            let _ = writeln!(text, "v {} {} {}", p.x, p.y, p.z);
-        }
-        for poly in m.mesh.polygons() {
-            text.push('f');
-            for &i in poly {
-                let _ = write!(text, " {}", base + i as usize);
-            }
-            text.push('\n');
-        }
+        append_obj(
+            &mut text,
+            m.surface_positions(),
+            m.mesh.polygons(),
+            base,
+            None,
+        );
         base += m.surface_count;
     }
     std::fs::write(path, text)

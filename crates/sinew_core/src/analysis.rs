@@ -113,8 +113,10 @@ pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
                 .iter()
                 .filter(|&&x| {
                     bones.iter().any(|b| {
-                        b.closest_within(x, None, f32::INFINITY)
-                            .is_some_and(|h| h.signed_distance < -depth && b.contains(x))
+                        // Outside the bone's box is outside the bone.
+                        b.lower_bound(x) == 0.0
+                            && b.closest_within(x, None, f32::INFINITY)
+                                .is_some_and(|h| h.signed_distance < -depth && b.contains(x))
                     })
                 })
                 .count()

@@ -133,8 +133,7 @@ fn a_user_mesh_replaces_the_swept_one() {
     )
     .unwrap();
     let file = dir.join("mine.obj");
-    let polys: Vec<Vec<u32>> = swept.mesh.polygons().map(<[u32]>::to_vec).collect();
-    sinew_core::import::write_obj(&file, &swept.mesh.positions, &polys).unwrap();
+    sinew_core::import::write_obj(&file, &swept.mesh.positions, swept.mesh.polygons()).unwrap();
     let options = ImportOptions {
         user_meshes: vec![UserMuscleMesh {
             muscle: "flexor".into(),
@@ -166,6 +165,18 @@ fn with(body: &str, rest: &str) -> String {
 {body}
 {rest}
 </mujoco>"#
+    )
+}
+
+/// A spatial tendon "t" through `sites` and the muscle "m" pulling on it.
+fn muscle_through(sites: &[&str]) -> String {
+    let path: String = sites
+        .iter()
+        .map(|s| format!("<site site=\"{s}\"/>\n"))
+        .collect();
+    format!(
+        "<tendon><spatial name=\"t\">{path}</spatial></tendon>\n\
+         <actuator><muscle name=\"m\" tendon=\"t\" force=\"100\"/></actuator>"
     )
 }
 
@@ -216,12 +227,7 @@ fn unknown_mesh_file_is_an_error() {
 #[test]
 fn tendon_naming_a_missing_site_is_an_error() {
     let dir = scratch("site");
-    let text = with(
-        BODY,
-        r#"<tendon><spatial name="t"><site site="s0"/>
-<site site="ghost"/></spatial></tendon>
-<actuator><muscle name="m" tendon="t" force="100"/></actuator>"#,
-    );
+    let text = with(BODY, &muscle_through(&["s0", "ghost"]));
     let p = model(&dir, "site.xml", &text);
     expect_err(import(&p), &["site.xml:", "'ghost'", "tendon 't'"]);
 }
@@ -240,18 +246,10 @@ fn unsupported_joint_types_are_named() {
 #[test]
 fn short_and_degenerate_paths_are_errors() {
     let dir = scratch("path");
-    let one = with(
-        BODY,
-        r#"<tendon><spatial name="t"><site site="s0"/></spatial></tendon>
-<actuator><muscle name="m" tendon="t" force="100"/></actuator>"#,
-    );
+    let one = with(BODY, &muscle_through(&["s0"]));
     let p = model(&dir, "one.xml", &one);
     expect_err(import(&p), &["muscle 'm'", "1 point"]);
-    let zero = with(
-        BODY,
-        r#"<tendon><spatial name="t"><site site="s0"/><site site="s0"/><site site="s1"/></spatial></tendon>
-<actuator><muscle name="m" tendon="t" force="100"/></actuator>"#,
-    );
+    let zero = with(BODY, &muscle_through(&["s0", "s0", "s1"]));
     let p = model(&dir, "zero.xml", &zero);
     expect_err(import(&p), &["muscle 'm'", "segment 0", "zero length"]);
 }

@@ -301,26 +301,15 @@ pub fn sweep_path_clear_of(
 /// vertices in angular order, so the surface wraps the bone instead of
 /// collapsing onto its nearest points. A vertex whose ray never leaves the
 /// bones within [`MAX_PUSH`] goes to the nearest surface point instead.
-/// `keep` lists vertices left where they are (the tips and held rings sit on
-/// their bones by construction). Returns how many vertices moved.
+/// Returns how many vertices moved.
 pub fn push_out_of_bones(
     positions: &mut [Vec3],
     centers: &[Vec3],
     bones: &[&TargetSurface],
     margin: f32,
-    keep: &[u32],
 ) -> usize {
-    // Local bounding boxes: outside a bone's box is outside the bone.
-    let boxes: Vec<(Vec3, Vec3)> = bones
-        .iter()
-        .map(|b| crate::mesh::bounds_of(&b.positions))
-        .collect();
-    let in_box = |k: usize, p: Vec3| {
-        let l = bones[k].transform.inverse().transform_point3(p);
-        l.cmpge(boxes[k].0).all() && l.cmple(boxes[k].1).all()
-    };
     // Inside any bone (winding number), and the distance to the nearest surface.
-    let inside = |p: Vec3| (0..bones.len()).any(|k| in_box(k, p) && bones[k].contains(p));
+    let inside = |p: Vec3| bones.iter().any(|b| b.contains(p));
     let distance = |p: Vec3| {
         bones
             .iter()
@@ -330,7 +319,7 @@ pub fn push_out_of_bones(
     };
     let mut moved = 0;
     for (i, p) in positions.iter_mut().enumerate() {
-        if keep.contains(&(i as u32)) || !inside(*p) {
+        if !inside(*p) {
             continue;
         }
         moved += 1;
@@ -470,13 +459,7 @@ mod tests {
         let path = [Vec3::new(-0.08, 0.005, 0.0), Vec3::new(0.08, 0.005, 0.0)];
         let m = sweep_path("m", &path, None, &SweepOptions::default()).unwrap();
         let mut positions = m.mesh.positions.clone();
-        let moved = push_out_of_bones(
-            &mut positions,
-            &m.centers,
-            &[&target],
-            0.001,
-            &[0, m.last_tip],
-        );
+        let moved = push_out_of_bones(&mut positions, &m.centers, &[&target], 0.001);
         assert!(moved > 0);
         for p in &positions {
             let hit = target.closest_within(*p, None, f32::INFINITY).unwrap();

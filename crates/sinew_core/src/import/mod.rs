@@ -27,7 +27,6 @@ use builder::{SweepOptions, push_out_of_bones, sweep_path_clear_of};
 use glam::{Affine3A, Quat, Vec3};
 use mjcf::MjcfModel;
 use serde::{Deserialize, Serialize};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Which bones get a mesh in the scene.
@@ -125,7 +124,7 @@ struct BoneGeometry {
 }
 
 /// Loads and places the mesh geoms of every body (body frame), welded, with
-/// degenerate triangles dropped.
+/// degenerate faces dropped.
 fn bone_geometry(model: &MjcfModel) -> Result<Vec<Option<BoneGeometry>>, ImportError> {
     let mut out: Vec<Option<BoneGeometry>> = (0..model.bodies.len()).map(|_| None).collect();
     for g in &model.geoms {
@@ -137,16 +136,12 @@ fn bone_geometry(model: &MjcfModel) -> Result<Vec<Option<BoneGeometry>>, ImportE
                 kind: "mesh asset",
                 name: g.mesh.clone(),
             })?;
+        // Real bone scans have slivers; a target only needs triangles.
         let options = LoadOptions {
-            weld_tolerance: Some(1e-6),
+            drop_degenerate_faces: true,
             ..Default::default()
         };
-        let mesh = match load_mesh(&asset.file, &options) {
-            Ok(m) => m,
-            // Real bone scans have slivers; a target only needs triangles.
-            Err(crate::MeshError::DegenerateFace { .. }) => tolerant_load(&asset.file)?,
-            Err(e) => return Err(e.into()),
-        };
+        let mesh = load_mesh(&asset.file, &options)?;
         let flip = asset.scale.x * asset.scale.y * asset.scale.z < 0.0;
         let place = Affine3A::from_rotation_translation(g.quat, g.pos);
         let geometry = out[body].get_or_insert_with(|| BoneGeometry {
@@ -165,42 +160,6 @@ fn bone_geometry(model: &MjcfModel) -> Result<Vec<Option<BoneGeometry>>, ImportE
         }));
     }
     Ok(out)
-}
-
-/// Loads a mesh, welds it, and drops the triangles that welding made
-/// degenerate (repeated corners or zero area): a bone target only needs
-/// triangles, and scanned bones have slivers.
-fn tolerant_load(path: &Path) -> Result<SurfaceMesh, ImportError> {
-    let (positions, polygons) = crate::mesh::load::read_raw(path)?;
-    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-        return Err(crate::MeshError::NonFinite {
-            file: path.to_path_buf(),
-            vertex: i,
-            value: positions[i].to_array(),
-        }
-        .into());
-    }
-    for (face, poly) in polygons.iter().enumerate() {
-        if let Some(&index) = poly.iter().find(|&&i| i as usize >= positions.len()) {
-            return Err(crate::MeshError::IndexOutOfRange {
-                file: path.to_path_buf(),
-                face,
-                index: index as usize,
-                count: positions.len(),
-            }
-            .into());
-        }
-    }
-    let (lo, hi) = crate::mesh::bounds_of(&positions);
-    let (welded, remap) = crate::mesh::weld_positions(&positions, 1e-6 * (hi - lo).length());
-    let at = |i: u32| welded[remap[i as usize] as usize];
-    let triangles: Vec<Vec<u32>> = polygons
-        .iter()
-        .flat_map(|poly| (1..poly.len() - 1).map(move |k| [poly[0], poly[k], poly[k + 1]]))
-        .filter(|&[a, b, c]| (at(b) - at(a)).cross(at(c) - at(a)).length() > 1e-12)
-        .map(|t| t.map(|i| remap[i as usize]).to_vec())
-        .collect();
-    Ok(SurfaceMesh::new(path, welded, &triangles)?)
 }
 
 /// Result of [`import_model`].
@@ -288,23 +247,28 @@ pub fn import_model(
             })
         })
         .collect();
-    let bone_boxes: Vec<Option<(Vec3, Vec3)>> = bone_targets
+    let bone_boxes: Vec<Option<Bounds>> = geometry
         .iter()
-        .zip(&geometry)
-        .enumerate()
-        .map(|(b, (t, g))| {
-            t.as_ref().map(|_| {
-                let pts: Vec<Vec3> = g
-                    .as_ref()
-                    .unwrap()
+        .zip(&world)
+        .map(|(g, pose)| {
+            g.as_ref().map(|g| {
+                let placed: Vec<Vec3> = g
                     .positions
                     .iter()
-                    .map(|&p| world[b].transform_point3(p))
+                    .map(|&p| pose.transform_point3(p))
                     .collect();
-                crate::mesh::bounds_of(&pts)
+                crate::mesh::bounds_of(&placed)
             })
         })
         .collect();
+    // Bone targets whose world box overlaps `bounds`.
+    let bones_near = |bounds: Bounds| -> Vec<&TargetSurface> {
+        bone_targets
+            .iter()
+            .zip(&bone_boxes)
+            .filter_map(|(t, b)| overlap(bounds, (*b)?).then_some(t.as_ref()?))
+            .collect()
+    };
 
     // Muscles.
     let chosen: Vec<usize> = if options.muscles.is_empty() {
@@ -326,7 +290,7 @@ pub fn import_model(
             })
             .collect::<Result<_, _>>()?
     };
-    let mut built = Vec::with_capacity(chosen.len());
+    let mut built: Vec<BuiltMuscle> = Vec::with_capacity(chosen.len());
     for &a in &chosen {
         let actuator = &model.actuators[a];
         let tendon = &model.tendons[actuator.tendon];
@@ -349,25 +313,16 @@ pub fn import_model(
             sites.last().and_then(|s| s.body),
         ];
         let mut m = if let Some(user) = options.user_meshes.iter().find(|u| u.muscle == name) {
-            user_muscle(&name, Path::new(&user.file), &points, options)?
+            user_muscle(&name, Path::new(&user.file), &points, bodies, options)?
         } else {
             let mut sweep = options.sweep.clone();
             if let Some((_, r)) = options.radii.iter().find(|(m, _)| *m == name) {
                 sweep.radius = Some(*r);
             }
             // Bones near the path: its centre line is kept a radius away.
-            let (plo, phi) = crate::mesh::bounds_of(&points);
             let reach = Vec3::splat(sweep.belly_radius(actuator.force));
-            let near: Vec<&TargetSurface> = bone_targets
-                .iter()
-                .zip(&bone_boxes)
-                .filter_map(|(t, bx)| {
-                    let (blo, bhi) = (*bx)?;
-                    ((plo - reach).cmple(bhi) & (phi + reach).cmpge(blo))
-                        .all()
-                        .then_some(t.as_ref()?)
-                })
-                .collect();
+            let (plo, phi) = crate::mesh::bounds_of(&points);
+            let near = bones_near((plo - reach, phi + reach));
             let clear = |c: Vec3, r: f32| clear_of_bones(c, r + options.push_out_margin, &near);
             let s = sweep_path_clear_of(&name, &points, actuator.force, &sweep, &clear)?;
             let take = options.attach_rings.min(s.rings.len() as u32 / 2) as usize;
@@ -387,27 +342,11 @@ pub fn import_model(
                 centers: s.centers,
             }
         };
-        m.bodies = bodies;
         // Push the surface out of nearby bones (tips and held rings too: they
         // are attached where they end up).
-        let (lo, hi) = crate::mesh::bounds_of(&m.mesh.positions);
-        let near: Vec<&TargetSurface> = bone_targets
-            .iter()
-            .zip(&bone_boxes)
-            .filter_map(|(t, bx)| {
-                let (blo, bhi) = (*bx)?;
-                let overlap = (lo.cmple(bhi) & hi.cmpge(blo)).all();
-                overlap.then_some(t.as_ref()?)
-            })
-            .collect();
+        let near = bones_near(crate::mesh::bounds_of(&m.mesh.positions));
         let mut positions = m.mesh.positions.clone();
-        let moved = push_out_of_bones(
-            &mut positions,
-            &m.centers,
-            &near,
-            options.push_out_margin,
-            &[],
-        );
+        let moved = push_out_of_bones(&mut positions, &m.centers, &near, options.push_out_margin);
         if moved > 0 {
             notes.push(format!("{name}: {moved} vertices pushed out of bones"));
             m.mesh = SurfaceMesh::new(
@@ -420,7 +359,7 @@ pub fn import_model(
     }
 
     // Targets by neighbourhood.
-    let boxes: Vec<(Vec3, Vec3)> = built
+    let boxes: Vec<Bounds> = built
         .iter()
         .map(|m| crate::mesh::bounds_of(&m.mesh.positions))
         .collect();
@@ -432,11 +371,13 @@ pub fn import_model(
             targets.push(o.targets.clone());
             continue;
         }
-        let grown = |b: (Vec3, Vec3)| (b.0 - Vec3::splat(reach), b.1 + Vec3::splat(reach));
-        let (lo, hi) = grown(boxes[i]);
+        let grown = (
+            boxes[i].0 - Vec3::splat(reach),
+            boxes[i].1 + Vec3::splat(reach),
+        );
         let mut muscles: Vec<(f32, usize)> = Vec::new();
         for (j, o) in built.iter().enumerate() {
-            if j == i || !(lo.cmple(boxes[j].1) & hi.cmpge(boxes[j].0)).all() {
+            if j == i || !overlap(grown, boxes[j]) {
                 continue;
             }
             let d = m
@@ -453,10 +394,10 @@ pub fn import_model(
         muscles.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut bones: Vec<(f32, usize)> = Vec::new();
         for (b, t) in bone_targets.iter().enumerate() {
-            let (Some(t), Some((blo, bhi))) = (t, bone_boxes[b]) else {
+            let (Some(t), Some(bounds)) = (t, bone_boxes[b]) else {
                 continue;
             };
-            if !(lo.cmple(bhi) & hi.cmpge(blo)).all() {
+            if !overlap(grown, bounds) {
                 continue;
             }
             let d = m
@@ -511,8 +452,8 @@ pub fn import_model(
         let shape = match (&geometry[b], wanted) {
             (Some(g), true) => {
                 let rel = mesh_dir.join(format!("{}.obj", body.name));
-                let polys: Vec<Vec<u32>> = g.triangles.iter().map(|t| t.to_vec()).collect();
-                write_obj(&scene_dir.join(&rel), &g.positions, &polys)?;
+                let triangles = g.triangles.iter().map(<[u32; 3]>::as_slice);
+                write_obj(&scene_dir.join(&rel), &g.positions, triangles)?;
                 files.push(scene_dir.join(&rel));
                 Some(BoneShape::Mesh {
                     file: path_string(&rel),
@@ -531,8 +472,7 @@ pub fn import_model(
     let mut muscles = Vec::with_capacity(built.len());
     for (m, targets) in built.into_iter().zip(targets) {
         let rel = mesh_dir.join(format!("{}.obj", m.name));
-        let polys: Vec<Vec<u32>> = m.mesh.polygons().map(<[u32]>::to_vec).collect();
-        write_obj(&scene_dir.join(&rel), &m.mesh.positions, &polys)?;
+        write_obj(&scene_dir.join(&rel), &m.mesh.positions, m.mesh.polygons())?;
         files.push(scene_dir.join(&rel));
         let mut attachments = Vec::new();
         for (end, body) in m.bodies.iter().enumerate() {
@@ -581,6 +521,14 @@ pub fn import_model(
     })
 }
 
+/// An axis-aligned box: `(min, max)`.
+type Bounds = (Vec3, Vec3);
+
+/// Whether two boxes overlap (touching counts).
+fn overlap(a: Bounds, b: Bounds) -> bool {
+    (a.0.cmple(b.1) & a.1.cmpge(b.0)).all()
+}
+
 /// Moves a centre-line point out of `bones` (and at least `radius` from their
 /// surfaces), along the direction away from the nearest surface point.
 fn clear_of_bones(mut c: Vec3, radius: f32, bones: &[&TargetSurface]) -> Vec3 {
@@ -609,6 +557,7 @@ fn user_muscle(
     name: &str,
     file: &Path,
     points: &[Vec3],
+    bodies: [Option<usize>; 2],
     options: &ImportOptions,
 ) -> Result<BuiltMuscle, ImportError> {
     let mesh = load_mesh(file, &LoadOptions::default())?;
@@ -651,7 +600,7 @@ fn user_muscle(
         fibers,
         tips,
         ends,
-        bodies: [None, None],
+        bodies,
         centers,
     })
 }
@@ -660,24 +609,14 @@ fn path_string(p: &Path) -> String {
     p.to_string_lossy().replace('\\', "/")
 }
 
-/// Writes positions and polygons as a Wavefront OBJ.
-pub fn write_obj(
+/// Writes positions and polygons as a Wavefront OBJ (6 decimals: µm).
+pub fn write_obj<'a>(
     path: &Path,
     positions: &[Vec3],
-    polygons: &[Vec<u32>],
+    polygons: impl IntoIterator<Item = &'a [u32]>,
 ) -> Result<(), ImportError> {
-    let mut text = String::with_capacity(positions.len() * 32 + polygons.len() * 24);
-    text.push_str("# written by sinew\n");
-    for p in positions {
-        let _ = writeln!(text, "v {:.6} {:.6} {:.6}", p.x, p.y, p.z);
-    }
-    for poly in polygons {
-        text.push('f');
-        for i in poly {
-            let _ = write!(text, " {}", i + 1);
-        }
-        text.push('\n');
-    }
+    let mut text = String::from("# written by sinew\n");
+    crate::mesh::append_obj(&mut text, positions, polygons, 1, Some(6));
     std::fs::write(path, text).map_err(|source| ImportError::Io {
         file: path.to_path_buf(),
         source,

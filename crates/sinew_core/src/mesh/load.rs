@@ -18,6 +18,10 @@ pub struct LoadOptions {
     /// Multiply every position by this factor (e.g. `0.01` for centimetre files
     /// in a metre scene). Default: `1.0`.
     pub scale: f32,
+    /// Drop faces that are degenerate after welding (repeated corners or zero
+    /// area) instead of failing. For targets such as scanned bones, which
+    /// only need triangles; a muscle's faces must all be sound. Default: `false`.
+    pub drop_degenerate_faces: bool,
 }
 
 impl Default for LoadOptions {
@@ -26,6 +30,7 @@ impl Default for LoadOptions {
             weld_tolerance: Some(1e-6),
             triangulate: false,
             scale: 1.0,
+            drop_degenerate_faces: false,
         }
     }
 }
@@ -41,7 +46,7 @@ pub fn load_mesh(path: &Path, options: &LoadOptions) -> Result<SurfaceMesh, Mesh
 
 /// The positions and polygons of an OBJ or STL file, as stored (no welding,
 /// no validation beyond the syntax).
-pub(crate) fn read_raw(path: &Path) -> Result<Raw, MeshError> {
+fn read_raw(path: &Path) -> Result<Raw, MeshError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -97,6 +102,10 @@ pub(crate) fn from_raw(
             }
         }
     }
+    if options.drop_degenerate_faces {
+        let min_area = super::min_polygon_area(&positions);
+        polygons.retain(|poly| !super::is_degenerate(&positions, poly, min_area));
+    }
     let mesh = SurfaceMesh::new(path, positions, &polygons)?;
     Ok(if options.triangulate {
         mesh.triangulated()
@@ -106,7 +115,7 @@ pub(crate) fn from_raw(
 }
 
 /// Positions and polygons as read from a file.
-pub(crate) type Raw = (Vec<Vec3>, Vec<Vec<u32>>);
+type Raw = (Vec<Vec3>, Vec<Vec<u32>>);
 
 /// Reads the vertices and faces of a Wavefront OBJ, keeping the file's vertex
 /// order (scenes refer to vertices by index: roots, attachments, maps).

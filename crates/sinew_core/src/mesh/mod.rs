@@ -141,8 +141,7 @@ impl SurfaceMesh {
     }
 
     fn check_degenerate_area(&self) -> Result<(), MeshError> {
-        let diag = self.bounding_box_diagonal().max(f32::MIN_POSITIVE);
-        let min_area = 1e-12 * diag * diag;
+        let min_area = min_polygon_area(&self.positions);
         for (face, poly) in self.polygons().enumerate() {
             let area = polygon_area(&self.positions, poly);
             if area.is_nan() || area <= min_area {
@@ -264,6 +263,51 @@ impl SurfaceMesh {
     pub fn load(path: &Path, options: &LoadOptions) -> Result<Self, MeshError> {
         load_mesh(path, options)
     }
+}
+
+/// Appends `positions` and `polygons` to Wavefront OBJ text. Faces refer to
+/// the first position as OBJ index `first_index` (1 for a file's first
+/// object). `decimals` fixes the digits of the coordinates; `None` writes the
+/// shortest text that reads back to the same `f32`.
+pub fn append_obj<'a>(
+    text: &mut String,
+    positions: &[Vec3],
+    polygons: impl IntoIterator<Item = &'a [u32]>,
+    first_index: usize,
+    decimals: Option<usize>,
+) {
+    use std::fmt::Write as _;
+    for p in positions {
+        let _ = match decimals {
+            Some(d) => writeln!(text, "v {:.d$} {:.d$} {:.d$}", p.x, p.y, p.z),
+            None => writeln!(text, "v {} {} {}", p.x, p.y, p.z),
+        };
+    }
+    for poly in polygons {
+        text.push('f');
+        for &i in poly {
+            let _ = write!(text, " {}", first_index + i as usize);
+        }
+        text.push('\n');
+    }
+}
+
+/// Polygons of `positions` at or below this area count as degenerate: a
+/// tiny fraction of the squared bounding-box diagonal.
+pub(crate) fn min_polygon_area(positions: &[Vec3]) -> f32 {
+    let (lo, hi) = bounds_of(positions);
+    let diag = (hi - lo).length().max(f32::MIN_POSITIVE);
+    1e-12 * diag * diag
+}
+
+/// Whether a polygon has repeated corners or (near) zero area, the faces
+/// [`SurfaceMesh::new`] rejects.
+pub(crate) fn is_degenerate(positions: &[Vec3], poly: &[u32], min_area: f32) -> bool {
+    let mut distinct = poly.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let area = polygon_area(positions, poly);
+    poly.len() < 3 || distinct.len() != poly.len() || area.is_nan() || area <= min_area
 }
 
 /// Area of a planar polygon (fan triangulation).

@@ -365,8 +365,10 @@ impl TargetSurface {
     }
 
     /// Whether a world point is inside the surface (winding number > ½).
+    /// Outside the bounding box the answer is no without summing: seen from
+    /// outside its convex hull a surface spans at most half the sphere.
     pub fn contains(&self, query: Vec3) -> bool {
-        self.winding_number(query) > 0.5
+        self.lower_bound(query) == 0.0 && self.winding_number(query) > 0.5
     }
 
     /// A lower bound on the distance from `query` (world) to this target: the
