@@ -111,13 +111,21 @@ pub struct TransformTrack {
 impl TransformTrack {
     /// Pose at `time` (identity for an empty track).
     pub fn sample(&self, time: f32) -> Affine3A {
+        let (rotation, translation) = self.sample_parts(time);
+        Affine3A::from_rotation_translation(rotation, translation)
+    }
+
+    /// Rotation and translation at `time` (identity for an empty track): what
+    /// [`TransformTrack::sample`] composes, for hosts that keep a rotation and
+    /// a translation (a Bevy `Transform` composes them to the same bits).
+    pub fn sample_parts(&self, time: f32) -> (Quat, Vec3) {
         if self.keys.is_empty() {
-            return Affine3A::IDENTITY;
+            return (Quat::IDENTITY, Vec3::ZERO);
         }
         let (i, j, t) = locate(self.keys.len(), |k| self.keys[k].time, time);
         let s = self.interpolation.shape(t);
         let (a, b) = (&self.keys[i], &self.keys[j]);
-        Affine3A::from_rotation_translation(
+        (
             a.rotation.normalize().slerp(b.rotation.normalize(), s),
             a.translation.lerp(b.translation, s),
         )

@@ -54,4 +54,6 @@ pub mod target;
 
 pub use error::{BuildError, ImportError, MeshError, SceneError};
 pub use glam;
-pub use solver::{ColorScope, Solver, SolverMethod, SolverSettings, StepTimings};
+pub use solver::{
+    ColorScope, RigidMomentum, Solver, SolverMethod, SolverParts, SolverSettings, StepTimings,
+};

@@ -22,16 +22,24 @@
 pub mod coloring;
 pub mod jacobi;
 mod momentum;
+pub mod stage;
 mod timings;
+
+pub use momentum::RigidMomentum;
+pub use stage::ClosestSchedule;
+use stage::{
+    begin_substep, closest_data, end_substep, link_muscle, project_iteration,
+    update_attachment_goals,
+};
 
 pub use timings::StepTimings;
 use timings::Stopwatch;
 
 use crate::animation::{Curve, TransformTrack, interpolate_rigid};
-use crate::constraints::{ConstraintBatch, ConstraintKind};
+use crate::constraints::ConstraintKind;
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
-use crate::muscle::{Muscle, MuscleDesc, SurfaceAnchor, TargetRef};
+use crate::muscle::{Muscle, MuscleDesc, TargetRef};
 use crate::sensor::ActivationRig;
 use crate::skeleton::SkeletonRig;
 use crate::target::{TargetSource, TargetSurface};
@@ -191,6 +199,27 @@ pub struct Bone {
     pub body: Option<usize>,
 }
 
+/// A [`Solver`] taken apart by [`Solver::into_parts`].
+#[derive(Clone, Debug)]
+pub struct SolverParts {
+    /// The settings.
+    pub settings: SolverSettings,
+    /// Bones; [`Bone::target`] indexes `targets`.
+    pub bones: Vec<Bone>,
+    /// Every target: bone meshes (local frame) and muscle snapshots.
+    pub targets: Vec<TargetSurface>,
+    /// Built muscles; [`TargetRef`]s index `bones` and `muscles`.
+    pub muscles: Vec<Muscle>,
+    /// Per muscle, the activation curve that drives it, if any.
+    pub curves: Vec<Option<Curve>>,
+    /// The skeleton that poses bones bound to bodies, if any.
+    pub skeleton: Option<SkeletonRig>,
+    /// Sensors, triggers and layers, if any.
+    pub activation_rig: Option<ActivationRig>,
+    /// Simulated time, seconds.
+    pub time: f32,
+}
+
 /// The solver's skeleton and its scratch buffers.
 #[derive(Debug)]
 struct SkeletonState {
@@ -227,6 +256,8 @@ pub struct Solver {
     pool: Option<(u32, rayon::ThreadPool)>,
     /// Bone poses at the current substep.
     substep_poses: Vec<Affine3A>,
+    /// Per muscle, the momentum a free muscle restores at the substep's end.
+    substep_momentum: Vec<Option<RigidMomentum>>,
 }
 
 impl Solver {
@@ -249,6 +280,7 @@ impl Solver {
             activation_rig: None,
             pool: None,
             substep_poses: Vec::new(),
+            substep_momentum: Vec::new(),
         })
     }
 
@@ -481,6 +513,22 @@ impl Solver {
         &self.timings
     }
 
+    /// Takes the solver apart for a driver that keeps the state elsewhere (the
+    /// Bevy plug-in spawns an entity per bone and muscle). Target connections
+    /// are not linked yet if no step ran: the new driver links them itself.
+    pub fn into_parts(self) -> SolverParts {
+        SolverParts {
+            settings: self.settings,
+            bones: self.bones,
+            targets: self.targets,
+            muscles: self.muscles,
+            curves: self.curves,
+            skeleton: self.skeleton.map(|s| s.rig),
+            activation_rig: self.activation_rig,
+            time: self.time,
+        }
+    }
+
     /// Warnings raised so far (clamped activations …), drained.
     pub fn take_warnings(&mut self) -> Vec<String> {
         std::mem::take(&mut self.warnings)
@@ -534,7 +582,7 @@ impl Solver {
                     TargetRef::Muscle(o) => muscle_target[o],
                 })
                 .collect();
-            link_muscle(m, &self.targets);
+            link_muscle(m, self.targets.as_slice());
         }
         // From now on only muscles somebody targets need a snapshot.
         let mut used: Vec<usize> = self
@@ -559,12 +607,7 @@ impl Solver {
         for &ti in &self.published {
             let t = &mut self.targets[ti];
             if let TargetSource::Muscle(m) = t.source {
-                let muscle = &self.muscles[m];
-                t.publish(&muscle.p[..muscle.surface_count]);
-                if first_iteration {
-                    t.update_normals();
-                    t.refit(false);
-                }
+                stage::publish(t, &self.muscles[m], first_iteration);
             }
         }
     }
@@ -671,12 +714,10 @@ impl Solver {
             }
             clock.lap(&mut timings.update_targets);
             let damping_exp = 1.0 / substeps as f32;
-            let mut free_momentum = Vec::new();
+            self.substep_momentum.clear();
             for m in &mut self.muscles {
-                integrate(m, gravity, h, damping_exp);
-                m.place_pinned();
-                m.constraints.clear_lambdas();
-                free_momentum.push(momentum::is_free(m).then(|| momentum::measure(m)));
+                let momentum = begin_substep(m, gravity, h, damping_exp);
+                self.substep_momentum.push(momentum);
             }
             clock.lap(&mut timings.integrate);
             for it in 0..iterations {
@@ -690,7 +731,7 @@ impl Solver {
                     walk: full_searches || self.settings.walk_every_iteration,
                     substep_start: it == 0,
                 };
-                let targets = &self.targets;
+                let targets = self.targets.as_slice();
                 let order = &self.settings.projection_order;
                 let method = self.settings.method;
                 let parallel = self.pool.is_some();
@@ -712,11 +753,8 @@ impl Solver {
                 });
                 clock.lap(&mut timings.project);
             }
-            for (m, reference) in self.muscles.iter_mut().zip(free_momentum) {
-                apply_predictions(m, h);
-                if let Some(reference) = reference {
-                    momentum::restore(m, reference, h);
-                }
+            for (m, &momentum) in self.muscles.iter_mut().zip(&self.substep_momentum) {
+                end_substep(m, h, momentum);
             }
             clock.lap(&mut timings.apply);
         }
@@ -725,163 +763,6 @@ impl Solver {
         self.frame += 1;
         timings.clock_reads = clock.reads();
         self.timings = timings;
-    }
-}
-
-fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> Affine3A) {
-    let mut k = 0;
-    for (i, a) in m.attachments.iter().enumerate() {
-        let t = pose(a.bone);
-        m.constraints.attach.goal[i] = t.transform_point3(a.vertex_local);
-        if a.internal_particle.is_some() {
-            m.constraints.branch_attach.goal[k] = t.transform_point3(a.internal_local);
-            k += 1;
-        }
-    }
-}
-
-fn integrate(m: &mut Muscle, gravity: Vec3, h: f32, damping_exp: f32) {
-    let keep = (1.0 - m.params.damping).powf(damping_exp);
-    for i in 0..m.x.len() {
-        let v = (m.v[i] + h * gravity) * keep;
-        m.v[i] = v;
-        m.p[i] = m.x[i] + h * v;
-    }
-}
-
-fn apply_predictions(m: &mut Muscle, h: f32) {
-    let inv_h = 1.0 / h;
-    for i in 0..m.x.len() {
-        m.v[i] = (m.p[i] - m.x[i]) * inv_h;
-        m.x[i] = m.p[i];
-    }
-}
-
-/// Which vertices run the full closest-point search in an iteration.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct ClosestSchedule {
-    /// Frame counter (staggers the vertices).
-    pub frame: u64,
-    /// Frames between two full searches of one vertex.
-    pub interval: u32,
-    /// The first iteration of a frame: full searches run, and every vertex
-    /// re-chooses its closest target.
-    pub active: bool,
-    /// Walk from the last triangle (else re-project onto it).
-    pub walk: bool,
-    /// The first iteration of a substep: bones have just been posed.
-    pub substep_start: bool,
-}
-
-impl ClosestSchedule {
-    /// Every vertex, every target: the full search.
-    #[cfg(test)]
-    pub const ALWAYS: Self = Self {
-        frame: 0,
-        interval: 1,
-        active: true,
-        walk: true,
-        substep_start: true,
-    };
-
-    fn wants(&self, vertex: usize) -> bool {
-        self.active && (vertex as u64 + self.frame).is_multiple_of(self.interval as u64)
-    }
-}
-
-/// Closest data (BE5): Sliding's closest point on the closest target per
-/// vertex, and the current goals of Soft and Hard on their rest triangles.
-pub(crate) fn closest_data(m: &mut Muscle, targets: &[TargetSurface], search: ClosestSchedule) {
-    let nt = m.target_ids.len();
-    if nt == 0 {
-        return;
-    }
-    let c = &mut m.constraints;
-    for i in 0..c.sliding.len() {
-        let v = c.sliding.particle[i] as usize;
-        let q = m.p[v];
-        // (rank, distance, slot): the rank is the distance, except that a
-        // vertex inside a rigid target (a bone) ranks it first, so Sliding
-        // pushes it out of the bone even when a neighbouring muscle is nearer.
-        let mut best: Option<(f32, f32, u32)> = None;
-        // Last iteration's target first; every other search is bounded by the
-        // best distance so far (Sliding only needs the closest target). The
-        // closest target is re-chosen in the first iteration of a frame; later
-        // iterations follow the chosen one only.
-        let first = c.sliding.target[i] as usize;
-        let choose = search.active || first >= nt;
-        let order = (first < nt)
-            .then_some(first)
-            .into_iter()
-            .chain((0..nt).filter(move |&s| choose && s != first));
-        let full = search.wants(v);
-        for slot in order {
-            let cell = &mut m.closest[i * nt + slot];
-            let warm = cell.map(|h| h.triangle);
-            let target = &targets[m.target_ids[slot]];
-            let lower = target.lower_bound(q);
-            // Inside a bone's box the vertex may be inside the bone: search it
-            // whatever the other targets' distances.
-            let may_be_inside = lower == 0.0 && !target.is_deforming();
-            let bound = match best {
-                Some((rank, d, _)) if rank >= 0.0 && !may_be_inside => d,
-                Some((rank, _, _)) if rank < 0.0 && !may_be_inside => continue,
-                _ => f32::MAX,
-            };
-            if lower >= bound {
-                continue;
-            }
-            let local = warm.filter(|_| !full).and_then(|t| {
-                if search.walk {
-                    target.walk(q, t)
-                } else {
-                    target.on_triangle(q, t)
-                }
-            });
-            let hit = match local {
-                Some(hit) => Some(hit),
-                None => target.closest_within(q, warm, bound),
-            };
-            if hit.is_some() {
-                *cell = hit;
-            }
-            if let Some(hit) = hit {
-                let inside_bone = hit.signed_distance < 0.0 && !target.is_deforming();
-                let rank = if inside_bone {
-                    -hit.distance - 1.0
-                } else {
-                    hit.distance
-                };
-                if best.is_none_or(|(r, _, _)| rank < r) {
-                    best = Some((rank, hit.distance, slot as u32));
-                }
-            }
-        }
-        match best {
-            Some((_, _, slot)) => {
-                let hit = m.closest[i * nt + slot as usize].expect("chosen hit");
-                c.sliding.point[i] = hit.point;
-                c.sliding.normal[i] = hit.normal;
-                c.sliding.target[i] = slot;
-            }
-            None => c.sliding.target[i] = u32::MAX,
-        }
-    }
-    // Soft and Hard goals on a rigid target only move with its bone, which
-    // is posed once per substep; a muscle target moves every iteration.
-    let moved = |t: &TargetSurface| search.substep_start || t.is_deforming();
-    // Disabled instances (weight 0: infinite compliance) need no goal.
-    for (i, a) in c.soft_anchor.iter().enumerate() {
-        let t = &targets[m.target_ids[a.target as usize]];
-        if c.soft.compliance[i].is_finite() && moved(t) {
-            c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
-        }
-    }
-    for (i, a) in c.hard_anchor.iter().enumerate() {
-        let t = &targets[m.target_ids[a.target as usize]];
-        if c.hard.compliance[i].is_finite() && moved(t) {
-            c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
-        }
     }
 }
 
@@ -898,205 +779,6 @@ fn for_each_muscle(
         }
         _ => muscles.iter_mut().for_each(f),
     }
-}
-
-/// One iteration's projection of a muscle: every type in `order` but a
-/// trailing Volume, then the bone contacts, then the Volume (which keeps the
-/// volume exact while moving vertices far less than the contacts did).
-fn project_iteration(
-    m: &mut Muscle,
-    method: SolverMethod,
-    order: &[ConstraintKind],
-    targets: &[TargetSurface],
-    inv_h2: f32,
-    parallel: bool,
-) {
-    let (body, volume_last) = match order.split_last() {
-        Some((ConstraintKind::Volume, rest)) => (rest, true),
-        _ => (order, false),
-    };
-    match method {
-        SolverMethod::Sequential => project(m, body, inv_h2),
-        SolverMethod::Colored { .. } => {
-            let mut state = m
-                .colors
-                .take()
-                .unwrap_or_else(|| coloring::ColoredState::new(m, order));
-            coloring::project_colored(m, &mut state, inv_h2, parallel);
-            m.colors = Some(state);
-            if !volume_last && order.contains(&ConstraintKind::Volume) {
-                project(m, &[ConstraintKind::Volume], inv_h2);
-            }
-        }
-        SolverMethod::Jacobi { omega } => {
-            let mut state = m
-                .jacobi
-                .take()
-                .unwrap_or_else(|| jacobi::JacobiState::new(m, order));
-            jacobi::project_jacobi(m, &mut state, inv_h2, omega, parallel);
-            m.jacobi = Some(state);
-            if !volume_last && order.contains(&ConstraintKind::Volume) {
-                project(m, &[ConstraintKind::Volume], inv_h2);
-            }
-        }
-    }
-    bone_contacts(m, targets);
-    if volume_last {
-        project(m, &[ConstraintKind::Volume], inv_h2);
-    }
-}
-
-/// In each iteration, after the projections (before a trailing Volume), puts
-/// every surface vertex that ended up inside one of its muscle's bone targets (and was outside it at rest)
-/// back on the bone's surface: bones do not give way, whatever the soft
-/// constraints solved after Sliding did. Each bone is checked only for
-/// vertices inside its bounding box, from the last closest triangle (a walk).
-pub(crate) fn bone_contacts(m: &mut Muscle, targets: &[TargetSurface]) {
-    let nt = m.target_ids.len();
-    let c = &m.constraints.sliding;
-    if nt == 0 || !c.rigid.iter().any(|&r| r) {
-        return;
-    }
-    for i in 0..c.len() {
-        let v = c.particle[i] as usize;
-        if m.w[v] == 0.0 {
-            continue;
-        }
-        for slot in (0..nt).filter(|&s| c.rigid[s]) {
-            let target = &targets[m.target_ids[slot]];
-            let q = m.p[v];
-            if !c.rest_outside[i * nt + slot] || target.lower_bound(q) > 0.0 {
-                continue;
-            }
-            let cell = &mut m.closest[i * nt + slot];
-            let hit = match cell.map(|h| h.triangle) {
-                Some(t) => target.walk(q, t),
-                None => target.closest_within(q, None, f32::INFINITY),
-            };
-            if let Some(hit) = hit {
-                *cell = Some(hit);
-                if hit.signed_distance < 0.0 {
-                    m.p[v] -= hit.normal * hit.signed_distance;
-                }
-            }
-        }
-    }
-}
-
-/// Projects every constraint of `m` once, type by type in `order` (BE6).
-pub(crate) fn project(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
-    let (p, w, c) = (&mut m.p, &m.w, &mut m.constraints);
-    for &kind in order {
-        match kind {
-            ConstraintKind::Attach => c.attach.solve(p, w, inv_h2),
-            ConstraintKind::BranchAttach => c.branch_attach.solve(p, w, inv_h2),
-            ConstraintKind::Hard => c.hard.solve(p, w, inv_h2),
-            ConstraintKind::Soft => c.soft.solve(p, w, inv_h2),
-            ConstraintKind::Sliding => c.sliding.solve(p, w, inv_h2),
-            ConstraintKind::Branch => c.branch.solve(p, w, inv_h2),
-            ConstraintKind::Internal => c.internal.solve(p, w, inv_h2),
-            ConstraintKind::Fiber => c.fiber.solve(p, w, inv_h2),
-            ConstraintKind::Volume => {
-                if let Some(v) = &mut c.volume {
-                    v.solve(p, w, inv_h2);
-                }
-            }
-        }
-    }
-}
-
-/// Creates one Sliding, Soft and Hard constraint per surface vertex against
-/// the muscle's targets, from the current positions (SPEC §5.7–5.9).
-fn link_muscle(m: &mut Muscle, targets: &[TargetSurface]) {
-    let nt = m.target_ids.len();
-    let n = m.surface_count;
-    let c = &mut m.constraints;
-    c.sliding = Default::default();
-    c.soft = Default::default();
-    c.hard = Default::default();
-    c.soft_anchor.clear();
-    c.hard_anchor.clear();
-    m.colors = None;
-    m.jacobi = None;
-    m.closest = vec![None; n * nt];
-    if nt == 0 {
-        return;
-    }
-    c.sliding.targets = nt;
-    c.sliding.mode = m.params.sliding_mode;
-    c.sliding.rigid = m
-        .target_ids
-        .iter()
-        .map(|&t| !targets[t].is_deforming() && matches!(targets[t].source, TargetSource::Bone(_)))
-        .collect();
-    for v in 0..n {
-        let q = m.x[v];
-        let mut best: Option<(f32, u32, crate::target::ClosestHit)> = None;
-        for (slot, &tid) in m.target_ids.iter().enumerate() {
-            let hit = targets[tid].closest(q, None);
-            m.closest[v * nt + slot] = hit;
-            match hit {
-                Some(h) => {
-                    c.sliding.rest_gap.push(h.distance);
-                    c.sliding.rest_outside.push(!h.is_inside());
-                    if best.is_none_or(|(d, _, _)| h.distance < d) {
-                        best = Some((h.distance, slot as u32, h));
-                    }
-                }
-                None => {
-                    c.sliding.rest_gap.push(0.0);
-                    c.sliding.rest_outside.push(true);
-                }
-            }
-        }
-        let Some((distance, slot, hit)) = best else {
-            continue;
-        };
-        c.sliding.particle.push(v as u32);
-        c.sliding.compliance.push(0.0);
-        c.sliding.point.push(hit.point);
-        c.sliding.normal.push(hit.normal);
-        c.sliding.target.push(slot);
-        c.sliding.lambda.push(0.0);
-        let target = &targets[m.target_ids[slot as usize]];
-        c.soft.push(v as u32, hit.point, distance, 0.0);
-        c.soft_anchor.push(SurfaceAnchor {
-            target: slot,
-            triangle: hit.triangle,
-            barycentric: hit.barycentric,
-            local: Vec3::ZERO,
-        });
-        let frame = target.frame_at(hit.triangle, hit.barycentric);
-        let local = Vec3::from(frame.basis.transpose() * glam::Vec3A::from(q - frame.origin));
-        c.hard.push(v as u32, q, 0.0, 0.0);
-        c.hard_anchor.push(SurfaceAnchor {
-            target: slot,
-            triangle: hit.triangle,
-            barycentric: hit.barycentric,
-            local,
-        });
-    }
-    // rest_gap / rest_outside were pushed for every vertex; keep them aligned
-    // with the constraints (vertices without any hit have no constraint).
-    if c.sliding.len() != n {
-        let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v as usize).collect();
-        let gap = std::mem::take(&mut c.sliding.rest_gap);
-        let out = std::mem::take(&mut c.sliding.rest_outside);
-        for v in keep {
-            c.sliding
-                .rest_gap
-                .extend_from_slice(&gap[v * nt..(v + 1) * nt]);
-            c.sliding
-                .rest_outside
-                .extend_from_slice(&out[v * nt..(v + 1) * nt]);
-        }
-        let cl = std::mem::take(&mut m.closest);
-        for &v in &c.sliding.particle {
-            m.closest
-                .extend_from_slice(&cl[v as usize * nt..(v as usize + 1) * nt]);
-        }
-    }
-    m.relink_weights();
 }
 
 #[cfg(test)]

@@ -17,9 +17,10 @@
 use crate::muscle::Muscle;
 use glam::{Mat3, Vec3};
 
-/// Linear and angular momentum of a muscle about its centre of mass.
+/// Linear and angular momentum of a free muscle about its centre of mass,
+/// recorded at the start of a substep (see [`super::stage::begin_substep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct RigidMomentum {
+pub struct RigidMomentum {
     linear: Vec3,
     angular: Vec3,
 }

@@ -1,5 +1,6 @@
 //! Per-type projection and gradient checks on a real P1 muscle.
 
+use super::stage::{closest_data, project};
 use super::*;
 use crate::constraints::ConstraintKind as K;
 use crate::scene::builtin;
@@ -17,7 +18,7 @@ fn violated_p1() -> (Solver, Muscle) {
         let k = i as f32;
         *p += 0.004 * Vec3::new((k * 1.3).sin(), (k * 2.1).cos(), (k * 0.7).sin());
     }
-    closest_data(&mut m, &solver.targets, ClosestSchedule::ALWAYS);
+    closest_data(&mut m, solver.targets.as_slice(), ClosestSchedule::ALWAYS);
     (solver, m)
 }
 

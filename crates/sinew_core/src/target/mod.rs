@@ -81,6 +81,25 @@ pub struct SurfaceFrame {
     pub basis: Mat3A,
 }
 
+/// Where a muscle's `target_ids` are looked up: the solver's table of every
+/// target, or a driver's slice of references in the muscle's own order.
+pub trait TargetSet {
+    /// The target with index `id`.
+    fn target(&self, id: usize) -> &TargetSurface;
+}
+
+impl TargetSet for [TargetSurface] {
+    fn target(&self, id: usize) -> &TargetSurface {
+        &self[id]
+    }
+}
+
+impl TargetSet for [&TargetSurface] {
+    fn target(&self, id: usize) -> &TargetSurface {
+        self[id]
+    }
+}
+
 /// Triangle geometry of one target, with a BVH.
 #[derive(Clone)]
 pub struct TargetSurface {
