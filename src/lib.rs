@@ -6,6 +6,7 @@
 //! | Crate | Re-exported as | What |
 //! |---|---|---|
 //! | `sinew_core` | [`core`] | the solver, meshes, scenes — no Bevy |
+//! | `sinew_bevy` | [`bevy`] (feature `bevy`, default) | the Bevy plug-in, panel and gizmos |
 //!
 //! ```
 //! let scene = sinew::core::scene::builtin("P1").unwrap();
@@ -14,3 +15,6 @@
 //! ```
 
 pub use sinew_core as core;
+
+#[cfg(feature = "bevy")]
+pub use sinew_bevy as bevy;

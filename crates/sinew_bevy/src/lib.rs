@@ -1,1 +1,364 @@
-//! placeholder during dependency build
+//! # `sinew_bevy`
+//!
+//! The [Bevy](https://bevyengine.org) plug-in for the sinew muscle solver.
+//! Muscles, bones and sensors are entities; the frame loop of
+//! [`sinew_core::Solver::step`] runs as ordered systems over them, with the
+//! same kernels ([`sinew_core::solver::stage`]) and the same bits.
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use sinew_bevy::prelude::*;
+//!
+//! App::new()
+//!     .add_plugins(MinimalPlugins)
+//!     .add_plugins(bevy::transform::TransformPlugin)
+//!     .add_plugins(SinewPlugin::default().iterations(10).substeps(2))
+//!     .run();
+//! ```
+//!
+//! ## Frame loop
+//!
+//! By default everything runs in [`PostUpdate`], after the same frame's
+//! transform propagation, so bones moved by `bevy_animation` or by user
+//! systems are seen without a frame of lag:
+//!
+//! ```text
+//! PostUpdate
+//!   SinewSystems::AnimateBones      (before TransformSystems::Propagate) scene tracks, skeletons
+//!   TransformSystems::Propagate
+//!   SinewSystems::ReadInputs        bone poses, activation (curves, sensors), parameters, links
+//!   SinewSystems::Substeps          runs SinewSubstepSchedule `substeps` times:
+//!       SinewSystems::Integrate         bone targets and attachment goals at the substep; predict
+//!       SinewSystems::Iterate           runs SinewIterationSchedule N times:
+//!           SinewIterationSystems::UpdateTargets   muscle snapshots
+//!           SinewIterationSystems::ClosestData     closest points on the targets
+//!           SinewIterationSystems::Project         constraint projection (per colour / Jacobi)
+//!       SinewSystems::ApplyPredictions  v = (p − x)/h, x = p
+//!   SinewSystems::WriteBack         render meshes, timings
+//! ```
+//!
+//! Muscles are processed with `par_iter` across entities (unless
+//! [`SinewSettings::threads`] is 1).
+//!
+//! ## Features
+//!
+//! - `render` (default): muscle and bone meshes ([`render`]), rewritten
+//!   every frame, tinted by activation.
+//! - `ui` (default): [`ui::SinewUiPlugin`], the egui tuning panel.
+//! - `debug` (default): [`debug::SinewDebugPlugin`], gizmos.
+//!
+//! Without features the plug-in runs headless with `MinimalPlugins`.
+
+pub mod build;
+pub mod components;
+#[cfg(feature = "debug")]
+pub mod debug;
+#[cfg(feature = "render")]
+pub mod render;
+pub mod scene;
+pub mod settings;
+mod systems;
+#[cfg(feature = "ui")]
+pub mod ui;
+
+use bevy::ecs::intern::Interned;
+use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
+use bevy::prelude::*;
+use bevy::transform::TransformSystems;
+use components::*;
+use settings::*;
+pub use systems::{StepContext, simulation_running};
+
+/// The commonly used items.
+pub mod prelude {
+    pub use crate::build::{BuildFailed, MuscleAttachment, MuscleBuilder, MuscleSource};
+    pub use crate::components::{
+        ActivationCurve, AttachmentBones, BonePose, BoneTarget, BoneTrack, Compliance, FiberMode,
+        Muscle, MuscleSnapshot, MuscleState, MuscleTargets, SensorRig, SinewBone, SkeletonDriver,
+    };
+    #[cfg(feature = "debug")]
+    pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
+    pub use crate::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
+    pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
+    #[cfg(feature = "ui")]
+    pub use crate::ui::SinewUiPlugin;
+    pub use crate::{
+        ResetSimulation, SinewIterationSchedule, SinewIterationSystems, SinewPlugin,
+        SinewSubstepSchedule, SinewSystems, StepContext,
+    };
+}
+
+/// The plug-in's system sets, in the order they run.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SinewSystems {
+    /// Scene bone tracks and skeletons write bone `Transform`s for the end of
+    /// the coming step (before transform propagation).
+    AnimateBones,
+    /// Bone poses, activation from curves and sensors, parameter edits,
+    /// target links (after transform propagation).
+    ReadInputs,
+    /// The substep loop (runs [`SinewSubstepSchedule`]).
+    Substeps,
+    /// In [`SinewSubstepSchedule`]: bone targets and attachment goals at the
+    /// substep's end time, then the prediction.
+    Integrate,
+    /// In [`SinewSubstepSchedule`]: runs [`SinewIterationSchedule`] N times.
+    Iterate,
+    /// In [`SinewSubstepSchedule`]: velocities from the corrections.
+    ApplyPredictions,
+    /// Render meshes rewritten; timings closed.
+    WriteBack,
+}
+
+/// The sets of one solver iteration, in [`SinewIterationSchedule`].
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SinewIterationSystems {
+    /// Muscle snapshots published for the muscles that target them.
+    UpdateTargets,
+    /// Closest points on the targets.
+    ClosestData,
+    /// Constraint projection.
+    Project,
+}
+
+/// One substep: [`SinewSystems::Integrate`], [`SinewSystems::Iterate`],
+/// [`SinewSystems::ApplyPredictions`].
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct SinewSubstepSchedule;
+
+/// One iteration: [`SinewIterationSystems`].
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct SinewIterationSchedule;
+
+/// Sent to put every scene back to its first frame and the clock to zero.
+#[derive(Message, Clone, Copy, Debug, Default)]
+pub struct ResetSimulation;
+
+/// The simulation plug-in. Settings are set with the builder methods and
+/// live in the [`SinewSettings`] resource afterwards.
+///
+/// ```
+/// use sinew_bevy::prelude::*;
+/// let plugin = SinewPlugin::default()
+///     .iterations(5)
+///     .substeps(2)
+///     .method(Method::Jacobi { omega: 1.5 })
+///     .threads(1)
+///     .length_unit(100.0); // a scene in centimetres
+/// ```
+#[derive(Clone, Debug)]
+pub struct SinewPlugin {
+    schedule: Interned<dyn ScheduleLabel>,
+    settings: SinewSettings,
+}
+
+impl Default for SinewPlugin {
+    fn default() -> Self {
+        Self {
+            schedule: PostUpdate.intern(),
+            settings: SinewSettings::default(),
+        }
+    }
+}
+
+impl SinewPlugin {
+    /// Runs the simulation in `schedule` instead of [`PostUpdate`]. Bones are
+    /// read after [`TransformSystems::Propagate`] when that schedule has it.
+    pub fn in_schedule(mut self, schedule: impl ScheduleLabel) -> Self {
+        self.schedule = schedule.intern();
+        self
+    }
+
+    /// Starts from these settings.
+    pub fn settings(mut self, settings: SinewSettings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// Iterations per substep.
+    pub fn iterations(mut self, iterations: u32) -> Self {
+        self.settings.iterations = iterations;
+        self
+    }
+
+    /// Substeps per frame.
+    pub fn substeps(mut self, substeps: u32) -> Self {
+        self.settings.substeps = substeps;
+        self
+    }
+
+    /// Projection method.
+    pub fn method(mut self, method: Method) -> Self {
+        self.settings.method = method;
+        self
+    }
+
+    /// Threads: `1` runs everything on the calling thread.
+    pub fn threads(mut self, threads: u32) -> Self {
+        self.settings.threads = threads;
+        self
+    }
+
+    /// Scene units per metre (`100` for a scene in centimetres): gravity is
+    /// scaled to match.
+    pub fn length_unit(mut self, units_per_metre: f32) -> Self {
+        self.settings.space_scale = units_per_metre;
+        self
+    }
+
+    /// Simulated seconds per frame.
+    pub fn dt(mut self, dt: f32) -> Self {
+        self.settings.dt = dt;
+        self
+    }
+
+    /// Gravity in m/s².
+    pub fn gravity(mut self, gravity: Vec3) -> Self {
+        self.settings.gravity = gravity;
+        self
+    }
+}
+
+impl Plugin for SinewPlugin {
+    fn build(&self, app: &mut App) {
+        app.insert_resource(self.settings.clone())
+            .init_resource::<SinewClock>()
+            .init_resource::<SinewTimings>()
+            .init_resource::<SimulationState>()
+            .init_resource::<StepContext>()
+            .init_resource::<systems::ValidSettings>()
+            .add_message::<ResetSimulation>()
+            .register_type::<SinewSettings>()
+            .register_type::<SinewClock>()
+            .register_type::<SinewTimings>()
+            .register_type::<SimulationState>()
+            .register_type::<SinewBone>()
+            .register_type::<BonePose>()
+            .register_type::<Muscle>()
+            .register_type::<MuscleTargets>()
+            .register_type::<AttachmentBones>();
+        for (label, name) in [
+            (SinewSubstepSchedule.intern(), "substep"),
+            (SinewIterationSchedule.intern(), "iteration"),
+        ] {
+            let mut schedule = Schedule::new(label);
+            // Both are short chains run many times a frame: the
+            // single-threaded executor costs least; muscles still run in
+            // parallel inside each system.
+            schedule.set_executor(SingleThreadedExecutor::new());
+            app.add_schedule(schedule);
+            debug!("sinew: {name} schedule added");
+        }
+        let schedule = self.schedule;
+        app.configure_sets(
+            schedule,
+            SinewSystems::AnimateBones
+                .before(TransformSystems::Propagate)
+                .run_if(simulation_running),
+        )
+        .configure_sets(
+            schedule,
+            (
+                SinewSystems::ReadInputs,
+                SinewSystems::Substeps,
+                SinewSystems::WriteBack,
+            )
+                .chain()
+                .after(TransformSystems::Propagate)
+                .run_if(simulation_running),
+        )
+        .configure_sets(
+            SinewSubstepSchedule,
+            (
+                SinewSystems::Integrate,
+                SinewSystems::Iterate,
+                SinewSystems::ApplyPredictions,
+            )
+                .chain(),
+        )
+        .configure_sets(
+            SinewIterationSchedule,
+            (
+                SinewIterationSystems::UpdateTargets,
+                SinewIterationSystems::ClosestData,
+                SinewIterationSystems::Project,
+            )
+                .chain(),
+        )
+        .add_systems(
+            schedule,
+            (
+                (systems::animate_bone_tracks, systems::animate_skeletons)
+                    .chain()
+                    .in_set(SinewSystems::AnimateBones),
+                (
+                    systems::begin_step,
+                    systems::place_new_targets,
+                    systems::read_bones,
+                    systems::read_activation,
+                    systems::sync_muscles,
+                    systems::link_muscles,
+                )
+                    .chain()
+                    .in_set(SinewSystems::ReadInputs),
+                systems::run_substeps.in_set(SinewSystems::Substeps),
+                systems::finish_timings.in_set(SinewSystems::WriteBack),
+            ),
+        )
+        .add_systems(
+            SinewSubstepSchedule,
+            (
+                (systems::pose_targets, systems::integrate)
+                    .chain()
+                    .in_set(SinewSystems::Integrate),
+                systems::run_iterations.in_set(SinewSystems::Iterate),
+                systems::apply_predictions.in_set(SinewSystems::ApplyPredictions),
+            ),
+        )
+        .add_systems(
+            SinewIterationSchedule,
+            (
+                systems::publish_snapshots.in_set(SinewIterationSystems::UpdateTargets),
+                systems::closest_data.in_set(SinewIterationSystems::ClosestData),
+                systems::project.in_set(SinewIterationSystems::Project),
+            ),
+        );
+        // Reset, building and scenes run every frame, paused or not, before
+        // the bones are animated and propagated: what they spawn is posed in
+        // the same frame.
+        app.add_systems(
+            schedule,
+            (
+                reset_simulation,
+                build::start_builds,
+                build::finish_builds,
+                scene::spawn_scenes,
+            )
+                .chain()
+                .before(SinewSystems::AnimateBones)
+                .before(TransformSystems::Propagate),
+        );
+        scene::register(app);
+        #[cfg(feature = "render")]
+        render::register(app, schedule);
+    }
+}
+
+/// Handles [`ResetSimulation`]: clock to zero, every scene respawned.
+fn reset_simulation(
+    mut messages: MessageReader<ResetSimulation>,
+    mut clock: ResMut<SinewClock>,
+    mut roots: Query<&mut scene::SpawnedScene>,
+    mut commands: Commands,
+) {
+    if messages.read().count() == 0 {
+        return;
+    }
+    *clock = SinewClock::default();
+    for mut spawned in &mut roots {
+        for e in spawned.entities.drain(..) {
+            commands.entity(e).despawn();
+        }
+        spawned.done = false;
+    }
+}

@@ -1,0 +1,279 @@
+//! Building muscles from meshes off the main thread.
+//!
+//! Spawn an entity with a [`MuscleBuilder`]; the plug-in builds the muscle
+//! (internal structure, fibres, constraints) on Bevy's async compute pool
+//! and, when it is done, inserts [`MuscleState`], [`MuscleSnapshot`],
+//! [`MuscleTargets`], [`AttachmentBones`] and (if absent) [`Muscle`]. The
+//! frame never waits for a build. A build that fails leaves a [`BuildFailed`]
+//! with the reason and logs it.
+
+use crate::components::*;
+use bevy::prelude::*;
+use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
+use sinew_core::glam::Affine3A;
+use sinew_core::mesh::{LoadOptions, SurfaceMesh};
+use sinew_core::muscle::{
+    AttachmentDesc, Muscle as CoreMuscle, MuscleDesc, MuscleParams, Roots, TargetRef,
+};
+use sinew_core::target::{TargetSource, TargetSurface};
+use std::path::PathBuf;
+
+/// Where a muscle's surface comes from.
+#[derive(Clone, Debug)]
+pub enum MuscleSource {
+    /// An OBJ or STL file on disk, loaded with these options.
+    File(PathBuf, LoadOptions),
+    /// A mesh already in memory.
+    Mesh(SurfaceMesh),
+    /// A Bevy mesh asset (triangle list; split vertices are welded). The
+    /// build starts once the asset is loaded.
+    #[cfg(feature = "render")]
+    Handle(Handle<Mesh>),
+}
+
+/// Where a muscle is held: a vertex (or the vertex nearest `point`) fixed to
+/// a bone (`None`: to the world).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MuscleAttachment {
+    /// The bone entity, or `None` for the world.
+    pub bone: Option<Entity>,
+    /// The vertex index.
+    pub vertex: Option<u32>,
+    /// Or the vertex nearest this world point.
+    pub point: Option<Vec3>,
+}
+
+impl MuscleAttachment {
+    /// Vertex `vertex` held by `bone`.
+    pub fn vertex(bone: Entity, vertex: u32) -> Self {
+        Self {
+            bone: Some(bone),
+            vertex: Some(vertex),
+            point: None,
+        }
+    }
+
+    /// The vertex nearest `point` held by `bone`.
+    pub fn nearest(bone: Entity, point: Vec3) -> Self {
+        Self {
+            bone: Some(bone),
+            vertex: None,
+            point: Some(point),
+        }
+    }
+}
+
+/// A muscle to build: its mesh, root selection, attachments, targets and
+/// parameters. Replaced by the built state when done.
+#[derive(Component, Clone, Debug)]
+pub struct MuscleBuilder {
+    /// Name (messages, sensors, the panel).
+    pub name: String,
+    /// The surface mesh (world coordinates).
+    pub source: MuscleSource,
+    /// The vertices the internal structure grows from.
+    pub roots: Roots,
+    /// Where it is held.
+    pub attachments: Vec<MuscleAttachment>,
+    /// Bones (with a [`BoneTarget`]) and muscles it slides on.
+    pub targets: Vec<Entity>,
+    /// Build-time and initial parameters.
+    pub params: MuscleParams,
+}
+
+impl MuscleBuilder {
+    /// A muscle called `name` from `source`, default parameters, roots at
+    /// its attachments.
+    pub fn new(name: impl Into<String>, source: MuscleSource) -> Self {
+        Self {
+            name: name.into(),
+            source,
+            roots: Roots::Attachments,
+            attachments: Vec::new(),
+            targets: Vec::new(),
+            params: MuscleParams::default(),
+        }
+    }
+
+    /// Roots of the internal structure.
+    pub fn roots(mut self, roots: Roots) -> Self {
+        self.roots = roots;
+        self
+    }
+
+    /// Adds an attachment.
+    pub fn attach(mut self, attachment: MuscleAttachment) -> Self {
+        self.attachments.push(attachment);
+        self
+    }
+
+    /// Adds a target (a bone with a [`BoneTarget`] or another muscle).
+    pub fn target(mut self, target: Entity) -> Self {
+        self.targets.push(target);
+        self
+    }
+
+    /// Sets the parameters.
+    pub fn params(mut self, params: MuscleParams) -> Self {
+        self.params = params;
+        self
+    }
+}
+
+/// A build that failed, with the reason (also logged).
+#[derive(Component, Clone, Debug, PartialEq, Eq)]
+pub struct BuildFailed(pub String);
+
+/// A build in flight.
+#[derive(Component)]
+pub(crate) struct BuildTask {
+    task: Task<Result<CoreMuscle, String>>,
+    bones: Vec<Entity>,
+    targets: Vec<Entity>,
+}
+
+/// Starts the builds of new [`MuscleBuilder`]s whose inputs are ready.
+pub(crate) fn start_builds(
+    mut commands: Commands,
+    builders: Query<(Entity, &MuscleBuilder), Without<BuildTask>>,
+    bones: Query<(&BonePose, &GlobalTransform)>,
+    #[cfg(feature = "render")] meshes: Option<Res<Assets<Mesh>>>,
+) {
+    for (entity, builder) in &builders {
+        let mesh = match &builder.source {
+            MuscleSource::File(path, options) => Err((path.clone(), options.clone())),
+            MuscleSource::Mesh(mesh) => Ok(mesh.clone()),
+            #[cfg(feature = "render")]
+            MuscleSource::Handle(handle) => match meshes.as_ref().and_then(|m| m.get(handle)) {
+                Some(mesh) => match crate::render::surface_from_mesh(&builder.name, mesh) {
+                    Ok(mesh) => Ok(mesh),
+                    Err(e) => {
+                        fail(&mut commands, entity, &builder.name, e);
+                        continue;
+                    }
+                },
+                None => continue, // not loaded yet
+            },
+        };
+        // Attachment bones by local index, with their poses now.
+        let mut bone_entities: Vec<Entity> = Vec::new();
+        let mut poses: Vec<Affine3A> = Vec::new();
+        let mut attachments = Vec::new();
+        let mut missing = None;
+        for a in &builder.attachments {
+            let bone = a
+                .bone
+                .map(|b| match bone_entities.iter().position(|&e| e == b) {
+                    Some(i) => i,
+                    None => {
+                        let pose = match bones.get(b) {
+                            Ok((pose, _)) if pose.initialized => pose.current,
+                            Ok((_, global)) => global.affine(),
+                            Err(_) => {
+                                missing = Some(b);
+                                Affine3A::IDENTITY
+                            }
+                        };
+                        bone_entities.push(b);
+                        poses.push(pose);
+                        bone_entities.len() - 1
+                    }
+                });
+            attachments.push(AttachmentDesc {
+                bone,
+                vertex: a.vertex,
+                point: a.point,
+            });
+        }
+        if let Some(b) = missing {
+            let reason = format!("attachment bone {b} has no SinewBone");
+            fail(&mut commands, entity, &builder.name, reason);
+            continue;
+        }
+        let name = builder.name.clone();
+        let roots = builder.roots.clone();
+        let params = builder.params.clone();
+        let task = AsyncComputeTaskPool::get().spawn(async move {
+            let mesh = match mesh {
+                Ok(mesh) => mesh,
+                Err((path, options)) => {
+                    SurfaceMesh::load(&path, &options).map_err(|e| e.to_string())?
+                }
+            };
+            let desc = MuscleDesc {
+                name,
+                mesh,
+                roots,
+                attachments,
+                // Targets are the driver's business (`MuscleTargets`).
+                targets: Vec::<TargetRef>::new(),
+                params,
+                maps: Default::default(),
+            };
+            CoreMuscle::build(desc, |b| poses[b]).map_err(|e| e.to_string())
+        });
+        commands
+            .entity(entity)
+            .remove::<MuscleBuilder>()
+            .insert(BuildTask {
+                task,
+                bones: bone_entities,
+                targets: builder.targets.clone(),
+            });
+    }
+}
+
+fn fail(commands: &mut Commands, entity: Entity, name: &str, reason: String) {
+    error!("sinew: muscle '{name}' could not be built: {reason}");
+    commands
+        .entity(entity)
+        .remove::<MuscleBuilder>()
+        .insert(BuildFailed(reason));
+}
+
+/// Inserts the built state of finished builds.
+pub(crate) fn finish_builds(
+    mut commands: Commands,
+    mut tasks: Query<(Entity, &mut BuildTask, Option<&Muscle>)>,
+) {
+    for (entity, mut build, muscle) in &mut tasks {
+        let Some(result) = check_ready(&mut build.task) else {
+            continue;
+        };
+        let mut e = commands.entity(entity);
+        e.remove::<BuildTask>();
+        match result {
+            Ok(built) => {
+                let live = muscle
+                    .cloned()
+                    .unwrap_or_else(|| Muscle::from_params(&built.params));
+                e.insert((
+                    live,
+                    muscle_snapshot(&built),
+                    MuscleTargets(std::mem::take(&mut build.targets)),
+                    AttachmentBones(std::mem::take(&mut build.bones)),
+                    MuscleState::new(built),
+                ));
+            }
+            Err(reason) => {
+                error!("sinew: a muscle could not be built: {reason}");
+                e.insert(BuildFailed(reason));
+            }
+        }
+    }
+}
+
+/// The snapshot other muscles see `m` through.
+pub fn muscle_snapshot(m: &CoreMuscle) -> MuscleSnapshot {
+    let mut surface = TargetSurface::new(
+        m.name.clone(),
+        TargetSource::Muscle(0),
+        m.surface_positions().to_vec(),
+        m.mesh.triangles.clone(),
+    );
+    surface.set_transform(Affine3A::IDENTITY);
+    MuscleSnapshot {
+        surface,
+        targeted: false,
+    }
+}

@@ -1,0 +1,345 @@
+//! Components: bones and their target meshes, muscles with their parameters
+//! and built state, activation drivers.
+
+use bevy::prelude::*;
+use sinew_core::animation::{Curve, TransformTrack};
+use sinew_core::constraints::FiberMode as CoreFiberMode;
+use sinew_core::muscle::{Compliances, Muscle as CoreMuscle, MuscleParams};
+use sinew_core::sensor::ActivationRig;
+use sinew_core::skeleton::SkeletonRig;
+use sinew_core::target::TargetSurface;
+use sinew_core::{RigidMomentum, glam::Affine3A};
+
+/// A bone: a kinematic body muscles attach to and slide on. Its pose is its
+/// [`GlobalTransform`], read after transform propagation in the same frame.
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+#[require(Transform, BonePose)]
+pub struct SinewBone {
+    /// Name (used by sensors and in messages).
+    pub name: String,
+}
+
+impl SinewBone {
+    /// A bone called `name`.
+    pub fn new(name: impl Into<String>) -> Self {
+        Self { name: name.into() }
+    }
+}
+
+/// A bone's pose at the start and end of the current frame (world from
+/// local); substeps interpolate between them. Maintained by the plug-in.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct BonePose {
+    /// Pose at the start of the frame.
+    pub previous: Affine3A,
+    /// Pose at the end of the frame.
+    pub current: Affine3A,
+    /// Whether `current` was read from the bone; a fresh bone starts at rest
+    /// (no motion in its first frame).
+    pub initialized: bool,
+}
+
+impl BonePose {
+    /// A bone already at `pose` (its first frame moves it from there).
+    pub fn at(pose: Affine3A) -> Self {
+        Self {
+            previous: pose,
+            current: pose,
+            initialized: true,
+        }
+    }
+}
+
+/// A bone's mesh as a collision/sliding target (local frame, with a BVH).
+/// The plug-in moves it with the bone every substep.
+#[derive(Component, Clone, Debug)]
+pub struct BoneTarget(pub TargetSurface);
+
+/// Keyframed animation of a bone (from a scene): the plug-in writes its
+/// [`Transform`] for the end time of the coming step, before propagation.
+#[derive(Component, Clone, Debug, Default, PartialEq)]
+pub struct BoneTrack(pub TransformTrack);
+
+/// A skeleton (joint tree with keyframed joint values, from a scene) that
+/// poses bones: each `(entity, body)` pair gets the body's world frame.
+#[derive(Component, Clone, Debug)]
+pub struct SkeletonDriver {
+    /// The compiled skeleton.
+    pub rig: SkeletonRig,
+    /// Bone entities and the skeleton body each follows.
+    pub bones: Vec<(Entity, usize)>,
+}
+
+/// Fibre rest-length formula, as [`CoreFiberMode`] but reflectable.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+pub enum FiberMode {
+    /// Eq. 2.12–2.15 as written (component-wise; not rotation-invariant).
+    PaperExact,
+    /// Only the edge component along the fibre shortens.
+    #[default]
+    RotationInvariant,
+}
+
+impl From<FiberMode> for CoreFiberMode {
+    fn from(m: FiberMode) -> Self {
+        match m {
+            FiberMode::PaperExact => CoreFiberMode::PaperExact,
+            FiberMode::RotationInvariant => CoreFiberMode::RotationInvariant,
+        }
+    }
+}
+
+impl From<CoreFiberMode> for FiberMode {
+    fn from(m: CoreFiberMode) -> Self {
+        match m {
+            CoreFiberMode::PaperExact => FiberMode::PaperExact,
+            CoreFiberMode::RotationInvariant => FiberMode::RotationInvariant,
+        }
+    }
+}
+
+/// Compliance `α = 1/k` per constraint type (as [`Compliances`], reflectable).
+/// `0` is rigid; larger is softer. Units: m/N (Volume: m³/N).
+#[derive(Clone, Copy, Debug, PartialEq, Reflect)]
+pub struct Compliance {
+    /// Fiber (surface edges).
+    pub fiber: f32,
+    /// Volume.
+    pub volume: f32,
+    /// Internal (vertex ↔ internal point).
+    pub internal: f32,
+    /// Branch (internal ↔ internal).
+    pub branch: f32,
+    /// Attach (vertex ↔ bone point).
+    pub attach: f32,
+    /// BranchAttach (internal point ↔ bone point).
+    pub branch_attach: f32,
+    /// Sliding on targets.
+    pub sliding: f32,
+    /// Soft target link.
+    pub soft: f32,
+    /// Hard target link.
+    pub hard: f32,
+}
+
+impl Default for Compliance {
+    fn default() -> Self {
+        Compliances::default().into()
+    }
+}
+
+impl From<Compliances> for Compliance {
+    fn from(c: Compliances) -> Self {
+        Self {
+            fiber: c.fiber,
+            volume: c.volume,
+            internal: c.internal,
+            branch: c.branch,
+            attach: c.attach,
+            branch_attach: c.branch_attach,
+            sliding: c.sliding,
+            soft: c.soft,
+            hard: c.hard,
+        }
+    }
+}
+
+impl From<Compliance> for Compliances {
+    fn from(c: Compliance) -> Self {
+        Self {
+            fiber: c.fiber,
+            volume: c.volume,
+            internal: c.internal,
+            branch: c.branch,
+            attach: c.attach,
+            branch_attach: c.branch_attach,
+            sliding: c.sliding,
+            soft: c.soft,
+            hard: c.hard,
+        }
+    }
+}
+
+/// A muscle and its live parameters. Edits take effect on the next frame
+/// without a rebuild. The built particles and constraints are in
+/// [`MuscleState`], which the plug-in inserts once the muscle is built.
+#[derive(Component, Clone, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct Muscle {
+    /// Activation `a ∈ [0, 1]` (values outside are clamped and reported once).
+    pub activation: f32,
+    /// Sensors or an [`ActivationCurve`] set `activation` every frame; when
+    /// `false` the value here (a slider) rules.
+    pub driven: bool,
+    /// Compliance per constraint type.
+    pub compliance: Compliance,
+    /// Activation-independent volume gain `G` (1 keeps the rest volume).
+    pub volume_gain: f32,
+    /// Volume gain at full activation `R` (the overpressure of a flexed muscle).
+    pub activation_volume_gain: f32,
+    /// Iterations for this muscle; `None` uses [`crate::SinewSettings::iterations`].
+    pub iterations: Option<u32>,
+    /// Fibre rest-length formula.
+    pub fiber_mode: FiberMode,
+    /// Velocity damping per frame, `[0, 1]`.
+    pub damping: f32,
+}
+
+impl Default for Muscle {
+    fn default() -> Self {
+        Self::from_params(&MuscleParams::default())
+    }
+}
+
+impl Muscle {
+    /// The live parameters of a muscle built with `p`.
+    pub fn from_params(p: &MuscleParams) -> Self {
+        Self {
+            activation: p.activation,
+            driven: false,
+            compliance: p.compliance.into(),
+            volume_gain: p.volume.gain,
+            activation_volume_gain: p.volume.activation_gain,
+            iterations: p.iterations,
+            fiber_mode: p.fiber_mode.into(),
+            damping: p.damping,
+        }
+    }
+
+    /// Writes these values into `p`; returns whether a compliance changed
+    /// (the batches then need [`CoreMuscle::apply_compliances`]).
+    pub fn write_to(&self, p: &mut MuscleParams) -> bool {
+        p.activation = self.activation;
+        p.volume.gain = self.volume_gain;
+        p.volume.activation_gain = self.activation_volume_gain;
+        p.iterations = self.iterations;
+        p.fiber_mode = self.fiber_mode.into();
+        p.damping = self.damping;
+        let compliance: Compliances = self.compliance.into();
+        let changed = compliance != p.compliance;
+        p.compliance = compliance;
+        changed
+    }
+
+    /// The first out-of-range value, as `(parameter, value, reason)`.
+    pub fn invalid(&self) -> Option<(&'static str, f32, &'static str)> {
+        let c = &self.compliance;
+        let compliances = [
+            c.fiber,
+            c.volume,
+            c.internal,
+            c.branch,
+            c.attach,
+            c.branch_attach,
+            c.sliding,
+            c.soft,
+            c.hard,
+        ];
+        if let Some(&v) = compliances.iter().find(|v| v.is_nan() || **v < 0.0) {
+            return Some(("compliance", v, "must be ≥ 0"));
+        }
+        if !(self.volume_gain > 0.0 && self.volume_gain.is_finite()) {
+            return Some(("volume_gain", self.volume_gain, "must be > 0"));
+        }
+        if !(self.activation_volume_gain > 0.0 && self.activation_volume_gain.is_finite()) {
+            return Some((
+                "activation_volume_gain",
+                self.activation_volume_gain,
+                "must be > 0",
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.damping) {
+            return Some(("damping", self.damping, "must be in [0, 1]"));
+        }
+        if self.iterations == Some(0) {
+            return Some(("iterations", 0.0, "must be ≥ 1"));
+        }
+        None
+    }
+}
+
+/// A muscle's built state: particles, internal structure, constraint batches
+/// (with their colour groups once a coloured method has run). The kernels
+/// are `sinew_core`'s.
+#[derive(Component, Clone, Debug)]
+pub struct MuscleState {
+    /// The core muscle.
+    pub muscle: CoreMuscle,
+    /// Whether Sliding / Soft / Hard are linked to the current targets.
+    pub(crate) linked: bool,
+    /// Momentum a free muscle restores at the end of the substep.
+    pub(crate) momentum: Option<RigidMomentum>,
+    /// The last parameters found invalid (reported once).
+    pub(crate) rejected: Option<Muscle>,
+    /// Pose of each attachment bone at the current substep (kept when a
+    /// bone goes away).
+    pub(crate) bone_poses: Vec<Affine3A>,
+}
+
+impl MuscleState {
+    /// Wraps a built muscle; its target links are made on the next frame.
+    pub fn new(muscle: CoreMuscle) -> Self {
+        Self {
+            muscle,
+            linked: false,
+            momentum: None,
+            rejected: None,
+            bone_poses: Vec::new(),
+        }
+    }
+
+    /// Surface vertex positions (world).
+    pub fn surface_positions(&self) -> &[Vec3] {
+        self.muscle.surface_positions()
+    }
+
+    /// Asks for Sliding / Soft / Hard to be rebuilt from the current
+    /// geometry on the next frame (after editing [`MuscleTargets`]).
+    pub fn relink(&mut self) {
+        self.linked = false;
+    }
+}
+
+/// What a muscle slides on, in order: entities with a [`BoneTarget`] or other
+/// muscles (their [`MuscleSnapshot`]). Edit it and call
+/// [`MuscleState::relink`]; entities that disappear are dropped.
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct MuscleTargets(pub Vec<Entity>);
+
+/// The bone entity behind each bone index the muscle's attachments use
+/// (`sinew_core` attachments name bones by index). A missing entity leaves
+/// its attachments where they were.
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct AttachmentBones(pub Vec<Entity>);
+
+/// A muscle as a target for other muscles: its surface as it was at the end
+/// of the last iteration. Maintained by the plug-in.
+#[derive(Component, Clone, Debug)]
+pub struct MuscleSnapshot {
+    /// The published surface.
+    pub surface: TargetSurface,
+    /// Some muscle targets it (only those are published).
+    pub(crate) targeted: bool,
+}
+
+/// Drives [`Muscle::activation`] with a curve of simulated time (when
+/// [`Muscle::driven`]).
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct ActivationCurve(pub Curve);
+
+/// Sensors, triggers and activation layers (SPEC §8) that drive muscles:
+/// the rig reads bone index `i` from `bones[i]` and writes muscle index `j`
+/// to `muscles[j]` (when that muscle is [`Muscle::driven`]).
+#[derive(Component, Clone, Debug)]
+pub struct SensorRig {
+    /// The rig.
+    pub rig: ActivationRig,
+    /// Bone entity per bone index.
+    pub bones: Vec<Entity>,
+    /// Muscle entity per muscle index.
+    pub muscles: Vec<Entity>,
+}

@@ -1,0 +1,215 @@
+//! Rendering (feature `render`): every muscle gets a Bevy [`Mesh`] whose
+//! positions and normals are rewritten each frame, and a material tinted by
+//! its activation; every bone with a target mesh gets a mesh too.
+//!
+//! Without a `PbrPlugin` (headless apps) these systems do nothing.
+
+use crate::SinewSystems;
+use crate::components::*;
+use bevy::asset::RenderAssetUsages;
+use bevy::ecs::intern::Interned;
+use bevy::ecs::schedule::ScheduleLabel;
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::prelude::*;
+use sinew_core::mesh::{SurfaceMesh, vertex_normals};
+use std::time::Instant;
+
+/// Colours a muscle's material between `relaxed` (activation 0) and
+/// `active` (activation 1).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct ActivationTint {
+    /// Colour at rest.
+    pub relaxed: Color,
+    /// Colour at full activation.
+    pub active: Color,
+}
+
+impl Default for ActivationTint {
+    fn default() -> Self {
+        Self {
+            relaxed: Color::srgb(0.72, 0.28, 0.26),
+            active: Color::srgb(1.0, 0.78, 0.2),
+        }
+    }
+}
+
+/// Marks the muscle meshes this module created (and so rewrites).
+#[derive(Component, Clone, Debug)]
+pub struct MuscleMesh(pub Handle<Mesh>);
+
+pub(crate) fn register(app: &mut App, schedule: Interned<dyn ScheduleLabel>) {
+    app.register_type::<ActivationTint>().add_systems(
+        schedule,
+        (
+            (add_muscle_meshes, add_bone_meshes).before(SinewSystems::ReadInputs),
+            (write_muscle_meshes, tint_muscles).in_set(SinewSystems::WriteBack),
+        ),
+    );
+}
+
+/// Converts a Bevy triangle mesh into a [`SurfaceMesh`], welding the
+/// vertices Bevy splits at UV seams.
+pub fn surface_from_mesh(name: &str, mesh: &Mesh) -> Result<SurfaceMesh, String> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(format!("mesh of '{name}' is not a triangle list"));
+    }
+    let Some(VertexAttributeValues::Float32x3(positions)) =
+        mesh.attribute(Mesh::ATTRIBUTE_POSITION)
+    else {
+        return Err(format!("mesh of '{name}' has no Float32x3 positions"));
+    };
+    let positions: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
+    let indices: Vec<u32> = match mesh.indices() {
+        Some(i) => i.iter().map(|i| i as u32).collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    let polygons: Vec<Vec<u32>> = indices.chunks_exact(3).map(<[u32]>::to_vec).collect();
+    let raw = SurfaceMesh::new(name, positions, &polygons).map_err(|e| e.to_string())?;
+    let tolerance = raw.bounding_box_diagonal() * 1e-6;
+    raw.welded(tolerance)
+        .map(|(mesh, _)| mesh)
+        .map_err(|e| e.to_string())
+}
+
+fn triangle_mesh(positions: &[Vec3], triangles: &[[u32; 3]]) -> Mesh {
+    let mut normals = Vec::new();
+    vertex_normals(triangles, positions, &mut normals);
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::MAIN_WORLD | RenderAssetUsages::RENDER_WORLD,
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_NORMAL,
+        normals.iter().map(|n| n.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_indices(Indices::U32(triangles.iter().flatten().copied().collect()))
+}
+
+/// Gives new muscles a mesh and a material of their own.
+fn add_muscle_meshes(
+    mut commands: Commands,
+    muscles: Query<(Entity, &MuscleState, Option<&ActivationTint>), Without<MuscleMesh>>,
+    meshes: Option<ResMut<Assets<Mesh>>>,
+    materials: Option<ResMut<Assets<StandardMaterial>>>,
+) {
+    let (Some(mut meshes), Some(mut materials)) = (meshes, materials) else {
+        return;
+    };
+    for (entity, state, tint) in &muscles {
+        let m = &state.muscle;
+        let handle = meshes.add(triangle_mesh(m.surface_positions(), &m.mesh.triangles));
+        let tint = tint.copied().unwrap_or_default();
+        let material = materials.add(StandardMaterial {
+            base_color: tint.relaxed,
+            perceptual_roughness: 0.55,
+            double_sided: true,
+            cull_mode: None,
+            ..default()
+        });
+        commands.entity(entity).insert((
+            MuscleMesh(handle.clone()),
+            Mesh3d(handle),
+            MeshMaterial3d(material),
+            tint,
+            // Vertices are world positions.
+            Transform::IDENTITY,
+        ));
+    }
+}
+
+/// Bones whose target was just added and that have no mesh yet.
+type NewBoneWithoutMesh = (Added<BoneTarget>, Without<Mesh3d>);
+
+/// Gives bones with a target mesh a mesh (bone-coloured).
+fn add_bone_meshes(
+    mut commands: Commands,
+    bones: Query<(Entity, &BoneTarget), NewBoneWithoutMesh>,
+    meshes: Option<ResMut<Assets<Mesh>>>,
+    materials: Option<ResMut<Assets<StandardMaterial>>>,
+    mut bone_material: Local<Option<Handle<StandardMaterial>>>,
+) {
+    let (Some(mut meshes), Some(mut materials)) = (meshes, materials) else {
+        return;
+    };
+    for (entity, target) in &bones {
+        let material = bone_material
+            .get_or_insert_with(|| {
+                materials.add(StandardMaterial {
+                    base_color: Color::srgb(0.89, 0.86, 0.78),
+                    perceptual_roughness: 0.8,
+                    ..default()
+                })
+            })
+            .clone();
+        let t = &target.0;
+        let mesh = meshes.add(triangle_mesh(&t.positions, &t.triangles));
+        commands
+            .entity(entity)
+            .insert((Mesh3d(mesh), MeshMaterial3d(material)));
+    }
+}
+
+/// Rewrites positions and normals of every muscle mesh.
+fn write_muscle_meshes(
+    muscles: Query<(&MuscleState, &MuscleMesh)>,
+    meshes: Option<ResMut<Assets<Mesh>>>,
+    mut timings: ResMut<crate::SinewTimings>,
+    mut normals: Local<Vec<Vec3>>,
+) {
+    let Some(mut meshes) = meshes else { return };
+    let start = Instant::now();
+    for (state, handle) in &muscles {
+        let Some(mut mesh) = meshes.get_mut(&handle.0) else {
+            continue;
+        };
+        let m = &state.muscle;
+        let positions = m.surface_positions();
+        vertex_normals(&m.mesh.triangles, positions, &mut normals);
+        if let Some(VertexAttributeValues::Float32x3(out)) =
+            mesh.attribute_mut(Mesh::ATTRIBUTE_POSITION)
+        {
+            for (o, p) in out.iter_mut().zip(positions) {
+                *o = p.to_array();
+            }
+        }
+        if let Some(VertexAttributeValues::Float32x3(out)) =
+            mesh.attribute_mut(Mesh::ATTRIBUTE_NORMAL)
+        {
+            for (o, n) in out.iter_mut().zip(normals.iter()) {
+                *o = n.to_array();
+            }
+        }
+    }
+    timings.write_back += start.elapsed();
+}
+
+/// Colours each muscle by its activation.
+fn tint_muscles(
+    muscles: Query<(
+        &MuscleState,
+        &ActivationTint,
+        &MeshMaterial3d<StandardMaterial>,
+    )>,
+    materials: Option<ResMut<Assets<StandardMaterial>>>,
+) {
+    let Some(mut materials) = materials else {
+        return;
+    };
+    for (state, tint, material) in &muscles {
+        let a = state.muscle.params.activation.clamp(0.0, 1.0);
+        let color = tint.relaxed.mix(&tint.active, a);
+        if let Some(m) = materials.get(&material.0)
+            && m.base_color == color
+        {
+            continue;
+        }
+        if let Some(mut m) = materials.get_mut(&material.0) {
+            m.base_color = color;
+        }
+    }
+}

@@ -1,0 +1,229 @@
+//! Global settings, the simulation clock and per-block timings (resources).
+
+use bevy::prelude::*;
+use sinew_core::constraints::ConstraintKind;
+use sinew_core::{ColorScope, SolverMethod, SolverSettings};
+use std::time::Duration;
+
+/// Projection method, as [`SolverMethod`] but reflectable (the panel and
+/// inspectors edit it). Converts both ways.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Reflect)]
+pub enum Method {
+    /// Gauss–Seidel, the reference ([`SolverMethod::Sequential`]).
+    #[default]
+    Sequential,
+    /// Per-muscle graph colouring ([`SolverMethod::Colored`]).
+    Colored,
+    /// Jacobi with over-relaxation `omega` ∈ [1, 2] ([`SolverMethod::Jacobi`]).
+    Jacobi {
+        /// Over-relaxation.
+        omega: f32,
+    },
+}
+
+impl Method {
+    /// Every method `sinew_core` offers, with default parameters (for menus).
+    pub const ALL: [Method; 3] = [
+        Method::Sequential,
+        Method::Colored,
+        Method::Jacobi { omega: 1.5 },
+    ];
+
+    /// A short name.
+    pub fn label(&self) -> &'static str {
+        match self {
+            Method::Sequential => "Sequential",
+            Method::Colored => "Colored (per muscle)",
+            Method::Jacobi { .. } => "Jacobi",
+        }
+    }
+}
+
+impl From<Method> for SolverMethod {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Sequential => SolverMethod::Sequential,
+            Method::Colored => SolverMethod::Colored {
+                scope: ColorScope::PerMuscle,
+            },
+            Method::Jacobi { omega } => SolverMethod::Jacobi { omega },
+        }
+    }
+}
+
+impl From<SolverMethod> for Method {
+    fn from(m: SolverMethod) -> Self {
+        match m {
+            SolverMethod::Sequential => Method::Sequential,
+            SolverMethod::Colored { .. } => Method::Colored,
+            SolverMethod::Jacobi { omega } => Method::Jacobi { omega },
+        }
+    }
+}
+
+/// Global solver settings (the ECS face of [`SolverSettings`]). Edits take
+/// effect on the next frame; [`SinewSettings::to_core`] validates nothing, the
+/// driver does (an invalid value is reported once and the last valid settings
+/// are kept).
+#[derive(Resource, Clone, Debug, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct SinewSettings {
+    /// Simulated time per frame (one app update), seconds. Default `1/60`.
+    pub dt: f32,
+    /// Iterations per substep (`N_it`). Default `10`.
+    pub iterations: u32,
+    /// Substeps per frame. Default `1`.
+    pub substeps: u32,
+    /// Gravity, m/s² (real units; divided by `space_scale`). Default zero.
+    pub gravity: Vec3,
+    /// Multiplies `dt`; `0` freezes the simulation. Default `1`.
+    pub time_scale: f32,
+    /// Scene units per metre (`100` for centimetres). Default `1`.
+    pub space_scale: f32,
+    /// Projection method. Default [`Method::Sequential`].
+    pub method: Method,
+    /// Worker threads inside one muscle's projection (`1`: none; muscles are
+    /// spread over Bevy's compute pool whatever this says). Default `1`.
+    pub threads: u32,
+    /// Frames between two full closest-point searches of a vertex. Default `16`.
+    pub full_search_interval: u32,
+    /// Walk over the targets in every iteration. Default `false`.
+    pub walk_every_iteration: bool,
+    /// Measure per-block time into [`SinewTimings`]. Default `true`.
+    pub timers: bool,
+    /// The order constraint types are projected in.
+    #[reflect(ignore)]
+    pub projection_order: Vec<ConstraintKind>,
+}
+
+impl Default for SinewSettings {
+    fn default() -> Self {
+        SolverSettings::default().into()
+    }
+}
+
+impl From<SolverSettings> for SinewSettings {
+    fn from(s: SolverSettings) -> Self {
+        Self {
+            dt: s.dt,
+            iterations: s.iterations,
+            substeps: s.substeps,
+            gravity: s.gravity,
+            time_scale: s.time_scale,
+            space_scale: s.space_scale,
+            method: s.method.into(),
+            threads: s.threads,
+            full_search_interval: s.full_search_interval,
+            walk_every_iteration: s.walk_every_iteration,
+            timers: s.timers,
+            projection_order: s.projection_order,
+        }
+    }
+}
+
+impl SinewSettings {
+    /// The core settings these stand for.
+    pub fn to_core(&self) -> SolverSettings {
+        SolverSettings {
+            dt: self.dt,
+            iterations: self.iterations,
+            substeps: self.substeps,
+            gravity: self.gravity,
+            time_scale: self.time_scale,
+            space_scale: self.space_scale,
+            method: self.method.into(),
+            projection_order: self.projection_order.clone(),
+            timers: self.timers,
+            full_search_interval: self.full_search_interval,
+            walk_every_iteration: self.walk_every_iteration,
+            threads: self.threads,
+        }
+    }
+}
+
+/// Play state of the simulation (the panel's play / pause / step / reset).
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+#[reflect(Resource)]
+pub enum SimulationState {
+    /// Steps every frame.
+    #[default]
+    Playing,
+    /// Holds still.
+    Paused,
+    /// Steps once, then pauses.
+    StepOnce,
+}
+
+/// The simulation clock: time and frame count of the last step.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct SinewClock {
+    /// Simulated time at the end of the last step, seconds.
+    pub time: f32,
+    /// Steps taken.
+    pub frame: u64,
+}
+
+/// Where a frame's time went, per block (SPEC §4), and the frame rate the
+/// simulation alone would reach.
+#[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct SinewTimings {
+    /// Bone poses, activation, sensors, parameter edits, target links.
+    pub read_inputs: Duration,
+    /// Bone targets and attachment goals at the substeps; muscle snapshots.
+    pub update_targets: Duration,
+    /// Prediction.
+    pub integrate: Duration,
+    /// Closest points on the targets.
+    pub closest_data: Duration,
+    /// Constraint projection.
+    pub project: Duration,
+    /// Velocity update.
+    pub apply: Duration,
+    /// Render meshes rewritten.
+    pub write_back: Duration,
+    /// Sum of the blocks of the last step.
+    pub total: Duration,
+    /// The last `HISTORY` totals, oldest first (for the panel's chart).
+    #[reflect(ignore)]
+    pub history: std::collections::VecDeque<[f32; 7]>,
+}
+
+impl SinewTimings {
+    /// Frames kept in [`SinewTimings::history`].
+    pub const HISTORY: usize = 240;
+
+    /// The blocks of the last step as `(name, duration)`.
+    pub fn blocks(&self) -> [(&'static str, Duration); 7] {
+        [
+            ("read inputs", self.read_inputs),
+            ("update targets", self.update_targets),
+            ("integrate", self.integrate),
+            ("closest data", self.closest_data),
+            ("project", self.project),
+            ("apply", self.apply),
+            ("write back", self.write_back),
+        ]
+    }
+
+    /// Closes a step: sums the blocks and pushes them to the history.
+    pub(crate) fn finish_step(&mut self) {
+        let blocks = self.blocks();
+        self.total = blocks.iter().map(|(_, d)| *d).sum();
+        if self.history.len() == Self::HISTORY {
+            self.history.pop_front();
+        }
+        self.history
+            .push_back(blocks.map(|(_, d)| d.as_secs_f32() * 1e3));
+    }
+
+    /// Zeroes the blocks for a new step (history is kept).
+    pub(crate) fn start_step(&mut self) {
+        let history = std::mem::take(&mut self.history);
+        *self = Self {
+            history,
+            ..Default::default()
+        };
+    }
+}

@@ -1,0 +1,271 @@
+//! The tuning panel (feature `ui`): [`SinewUiPlugin`].
+//!
+//! One egui window with the play controls, the global solver settings, a
+//! live per-block timing chart, the debug-view toggles and every muscle's
+//! parameters. Every edit lands in a component or resource and takes effect
+//! on the next frame without a rebuild.
+
+use crate::ResetSimulation;
+use crate::components::{FiberMode, Muscle, MuscleState};
+use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
+use bevy::prelude::*;
+pub use bevy_egui;
+use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+
+/// Adds the egui panel (and `EguiPlugin` if the app has none).
+#[derive(Clone, Debug, Default)]
+pub struct SinewUiPlugin;
+
+impl Plugin for SinewUiPlugin {
+    fn build(&self, app: &mut App) {
+        if !app.is_plugin_added::<EguiPlugin>() {
+            app.add_plugins(EguiPlugin::default());
+        }
+        app.add_systems(EguiPrimaryContextPass, panel);
+    }
+}
+
+/// Colours of the timing chart's blocks.
+const BLOCK_COLORS: [egui::Color32; 7] = [
+    egui::Color32::from_rgb(120, 120, 120),
+    egui::Color32::from_rgb(90, 160, 220),
+    egui::Color32::from_rgb(110, 200, 120),
+    egui::Color32::from_rgb(230, 170, 60),
+    egui::Color32::from_rgb(220, 90, 80),
+    egui::Color32::from_rgb(170, 110, 210),
+    egui::Color32::from_rgb(200, 200, 90),
+];
+
+#[allow(clippy::too_many_arguments)]
+fn panel(
+    mut contexts: EguiContexts,
+    mut settings: ResMut<SinewSettings>,
+    mut state: ResMut<SimulationState>,
+    clock: Res<SinewClock>,
+    timings: Res<SinewTimings>,
+    mut reset: MessageWriter<ResetSimulation>,
+    mut muscles: Query<(Entity, &mut Muscle, Option<&MuscleState>)>,
+    #[cfg(feature = "debug")] mut view: Option<ResMut<crate::debug::SinewDebugView>>,
+) -> Result {
+    let ctx = contexts.ctx_mut()?;
+    egui::Window::new("sinew")
+        .default_width(330.0)
+        .default_pos([10.0, 10.0])
+        .vscroll(true)
+        .show(ctx, |ui| {
+            controls(ui, &mut state, &clock, &timings, &mut reset);
+            ui.separator();
+            egui::CollapsingHeader::new("Solver")
+                .default_open(true)
+                .show(ui, |ui| solver(ui, &mut settings));
+            egui::CollapsingHeader::new("Timings")
+                .default_open(true)
+                .show(ui, |ui| chart(ui, &timings));
+            #[cfg(feature = "debug")]
+            if let Some(view) = view.as_deref_mut() {
+                egui::CollapsingHeader::new("Debug view")
+                    .default_open(false)
+                    .show(ui, |ui| debug_toggles(ui, view));
+            }
+            egui::CollapsingHeader::new(format!("Muscles ({})", muscles.iter().len()))
+                .default_open(true)
+                .show(ui, |ui| {
+                    let mut list: Vec<_> = muscles.iter_mut().collect();
+                    list.sort_by_key(|(e, ..)| *e);
+                    for (entity, mut muscle, built) in list {
+                        let name = built.map_or_else(
+                            || format!("{entity} (building)"),
+                            |s| s.muscle.name.clone(),
+                        );
+                        egui::CollapsingHeader::new(name)
+                            .id_salt(entity)
+                            .show(ui, |ui| muscle_panel(ui, &mut muscle));
+                    }
+                });
+        });
+    Ok(())
+}
+
+fn controls(
+    ui: &mut egui::Ui,
+    state: &mut SimulationState,
+    clock: &SinewClock,
+    timings: &SinewTimings,
+    reset: &mut MessageWriter<ResetSimulation>,
+) {
+    ui.horizontal(|ui| {
+        let playing = *state == SimulationState::Playing;
+        if ui
+            .button(if playing { "⏸ Pause" } else { "▶ Play" })
+            .clicked()
+        {
+            *state = if playing {
+                SimulationState::Paused
+            } else {
+                SimulationState::Playing
+            };
+        }
+        if ui.button("⏭ Step").clicked() {
+            *state = SimulationState::StepOnce;
+        }
+        if ui.button("⟲ Reset").clicked() {
+            reset.write(ResetSimulation);
+        }
+    });
+    let ms = timings.total.as_secs_f64() * 1e3;
+    let fps = if ms > 0.0 { 1e3 / ms } else { 0.0 };
+    ui.label(format!(
+        "frame {}   t = {:.3} s   solver {:.2} ms ({:.0} fps)",
+        clock.frame, clock.time, ms, fps
+    ));
+}
+
+fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
+    egui::ComboBox::from_label("method")
+        .selected_text(s.method.label())
+        .show_ui(ui, |ui| {
+            for m in Method::ALL {
+                let selected = std::mem::discriminant(&s.method) == std::mem::discriminant(&m);
+                if ui.selectable_label(selected, m.label()).clicked() && !selected {
+                    s.method = m;
+                }
+            }
+        });
+    if let Method::Jacobi { omega } = &mut s.method {
+        ui.add(egui::Slider::new(omega, 1.0..=2.0).text("ω (over-relaxation)"));
+    }
+    ui.add(egui::Slider::new(&mut s.iterations, 1..=50).text("iterations"));
+    ui.add(egui::Slider::new(&mut s.substeps, 1..=16).text("substeps"));
+    ui.add(egui::Slider::new(&mut s.time_scale, 0.0..=2.0).text("time scale"));
+    ui.horizontal(|ui| {
+        ui.label("gravity m/s²");
+        ui.add(
+            egui::DragValue::new(&mut s.gravity.x)
+                .speed(0.1)
+                .prefix("x "),
+        );
+        ui.add(
+            egui::DragValue::new(&mut s.gravity.y)
+                .speed(0.1)
+                .prefix("y "),
+        );
+        ui.add(
+            egui::DragValue::new(&mut s.gravity.z)
+                .speed(0.1)
+                .prefix("z "),
+        );
+    });
+    ui.add(egui::Slider::new(&mut s.threads, 0..=16).text("threads (0 = all)"));
+}
+
+fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {
+    for (i, (name, d)) in timings.blocks().iter().enumerate() {
+        ui.horizontal(|ui| {
+            ui.colored_label(BLOCK_COLORS[i], "■");
+            ui.label(format!("{name:<15} {:7.3} ms", d.as_secs_f64() * 1e3));
+        });
+    }
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(ui.available_width(), 90.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, egui::Color32::from_gray(24));
+    let history = &timings.history;
+    // Scale to the 95th percentile: a scene's first frame (links, colour
+    // groups) would flatten everything else.
+    let mut totals: Vec<f32> = history.iter().map(|b| b.iter().sum::<f32>()).collect();
+    totals.sort_by(f32::total_cmp);
+    let peak = totals
+        .get(totals.len() * 95 / 100)
+        .map_or(0.1, |p| (p * 1.2).max(0.1));
+    let n = SinewTimings::HISTORY.max(2) as f32;
+    let x = |i: usize| rect.left() + rect.width() * i as f32 / (n - 1.0);
+    let y = |ms: f32| rect.bottom() - rect.height() * (ms / peak).min(1.0);
+    // Cumulative lines: block k is drawn at the sum of blocks 0..=k.
+    for k in 0..7 {
+        let points: Vec<egui::Pos2> = history
+            .iter()
+            .enumerate()
+            .map(|(i, b)| egui::pos2(x(i), y(b[..=k].iter().sum())))
+            .collect();
+        if points.len() > 1 {
+            painter.add(egui::Shape::line(
+                points,
+                egui::Stroke::new(1.5, BLOCK_COLORS[k]),
+            ));
+        }
+    }
+    painter.text(
+        rect.left_top() + egui::vec2(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        format!("{peak:.2} ms"),
+        egui::FontId::monospace(10.0),
+        egui::Color32::LIGHT_GRAY,
+    );
+}
+
+#[cfg(feature = "debug")]
+fn debug_toggles(ui: &mut egui::Ui, v: &mut crate::debug::SinewDebugView) {
+    ui.checkbox(&mut v.fibers, "fibres (by activation)");
+    ui.checkbox(&mut v.internal, "internal structure");
+    ui.checkbox(&mut v.attachments, "attachments");
+    ui.checkbox(&mut v.sliding, "sliding links");
+    ui.checkbox(&mut v.soft, "soft links");
+    ui.checkbox(&mut v.hard, "hard links");
+    ui.checkbox(&mut v.colors, "colour groups");
+}
+
+fn muscle_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
+    // Edit a copy so an untouched panel does not mark the component changed.
+    let mut edit = (**m).clone();
+    ui.checkbox(&mut edit.driven, "driven by sensors / curve");
+    ui.add_enabled(
+        !edit.driven,
+        egui::Slider::new(&mut edit.activation, 0.0..=1.0).text("activation"),
+    );
+    ui.add(egui::Slider::new(&mut edit.volume_gain, 0.5..=2.0).text("volume gain G"));
+    ui.add(
+        egui::Slider::new(&mut edit.activation_volume_gain, 0.5..=2.0)
+            .text("overpressure R (gain at a = 1)"),
+    );
+    ui.add(egui::Slider::new(&mut edit.damping, 0.0..=1.0).text("damping"));
+    let mut own = edit.iterations.is_some();
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut own, "own iterations");
+        let mut n = edit.iterations.unwrap_or(10);
+        ui.add_enabled(own, egui::Slider::new(&mut n, 1..=50));
+        edit.iterations = own.then_some(n);
+    });
+    egui::ComboBox::from_id_salt(("fiber mode", ui.id()))
+        .selected_text(format!("{:?}", edit.fiber_mode))
+        .show_ui(ui, |ui| {
+            ui.selectable_value(
+                &mut edit.fiber_mode,
+                FiberMode::RotationInvariant,
+                "RotationInvariant",
+            );
+            ui.selectable_value(&mut edit.fiber_mode, FiberMode::PaperExact, "PaperExact");
+        });
+    ui.label("compliance α = 1/stiffness (0 = rigid)");
+    let c = &mut edit.compliance;
+    for (name, value) in [
+        ("fiber", &mut c.fiber),
+        ("internal", &mut c.internal),
+        ("branch", &mut c.branch),
+        ("volume", &mut c.volume),
+        ("attach", &mut c.attach),
+        ("branch attach", &mut c.branch_attach),
+        ("sliding", &mut c.sliding),
+        ("soft", &mut c.soft),
+        ("hard", &mut c.hard),
+    ] {
+        ui.add(
+            egui::Slider::new(value, 0.0..=1e-1)
+                .logarithmic(true)
+                .smallest_positive(1e-9)
+                .text(name),
+        );
+    }
+    if edit != **m {
+        **m = edit;
+    }
+}

@@ -1,0 +1,317 @@
+//! The Bevy driver, headless (`MinimalPlugins`): it agrees with the plain
+//! driver bit for bit, and activation, bones moved by systems, method
+//! switches and despawns behave.
+
+use bevy::prelude::*;
+use sinew_bevy::prelude::*;
+use sinew_core::animation::TransformKey;
+use sinew_core::glam::Vec3 as CoreVec3;
+use sinew_core::mesh::primitives::thesis_oval;
+use sinew_core::muscle::{MuscleParams, Roots};
+use sinew_core::scene::{Scene, builtin};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn asset(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets")
+        .join(path)
+}
+
+fn app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::transform::TransformPlugin,
+        SinewPlugin::default(),
+    ));
+    app
+}
+
+fn spawn_scene(app: &mut App, scene: SinewScene) -> Entity {
+    app.world_mut()
+        .spawn(SinewSceneRoot::Built(Arc::new(scene)))
+        .id()
+}
+
+fn spawned(app: &App, root: Entity) -> SpawnedScene {
+    app.world().get::<SpawnedScene>(root).unwrap().clone()
+}
+
+fn positions(app: &App, muscle: Entity) -> Vec<CoreVec3> {
+    app.world()
+        .get::<MuscleState>(muscle)
+        .unwrap()
+        .muscle
+        .x
+        .clone()
+}
+
+fn builtin_scene(name: &str) -> SinewScene {
+    SinewScene::build(builtin(name).unwrap(), Path::new(".")).unwrap()
+}
+
+#[test]
+fn bevy_and_plain_drivers_agree_bit_for_bit_on_p3() {
+    let path = asset("scenes/p3.ron");
+    let mut plain = Scene::load(&path)
+        .unwrap()
+        .instantiate(path.parent().unwrap())
+        .unwrap();
+    let mut app = app();
+    let root = spawn_scene(&mut app, SinewScene::load(&path).unwrap());
+    for _ in 0..300 {
+        plain.step();
+        app.update();
+    }
+    let muscles = spawned(&app, root).muscles;
+    assert_eq!(muscles.len(), plain.muscles().len());
+    for (m, &e) in plain.muscles().iter().zip(&muscles) {
+        let ecs = positions(&app, e);
+        let same =
+            m.x.iter()
+                .zip(&ecs)
+                .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
+        assert!(same, "muscle '{}' differs after 300 frames", m.name);
+    }
+    assert_eq!(app.world().resource::<SinewClock>().frame, 300);
+}
+
+#[test]
+fn muscles_in_parallel_give_the_same_bits() {
+    let path = asset("scenes/p3.ron");
+    let mut plain = Scene::load(&path)
+        .unwrap()
+        .instantiate(path.parent().unwrap())
+        .unwrap();
+    let mut app = app();
+    let root = spawn_scene(&mut app, SinewScene::load(&path).unwrap());
+    plain.step();
+    app.update();
+    // par_iter over muscles on the compute pool, rayon inside them.
+    app.world_mut().resource_mut::<SinewSettings>().threads = 4;
+    for _ in 1..100 {
+        plain.step();
+        app.update();
+    }
+    for (m, &e) in plain.muscles().iter().zip(&spawned(&app, root).muscles) {
+        assert_eq!(m.x, positions(&app, e), "muscle '{}'", m.name);
+    }
+}
+
+#[test]
+fn bevy_and_plain_drivers_agree_with_an_animated_bone() {
+    // P2 with its ground plane keyframed: rising and tilting over a second.
+    let mut scene = builtin("P2").unwrap();
+    let ground = scene.bones.iter_mut().find(|b| b.name == "ground").unwrap();
+    ground.track.keys = vec![
+        TransformKey {
+            time: 0.0,
+            translation: CoreVec3::ZERO,
+            rotation: Quat::IDENTITY,
+        },
+        TransformKey {
+            time: 1.0,
+            translation: CoreVec3::new(0.0, 0.02, 0.0),
+            rotation: Quat::from_rotation_z(0.2),
+        },
+    ];
+    let mut plain = scene.instantiate(Path::new(".")).unwrap();
+    let mut app = app();
+    let root = spawn_scene(&mut app, SinewScene::build(scene, Path::new(".")).unwrap());
+    for _ in 0..90 {
+        plain.step();
+        app.update();
+    }
+    for (m, &e) in plain.muscles().iter().zip(&spawned(&app, root).muscles) {
+        assert_eq!(m.x, positions(&app, e), "muscle '{}'", m.name);
+    }
+}
+
+/// Extent of `points` along `axis`.
+fn extent(points: &[CoreVec3], axis: CoreVec3) -> f32 {
+    let d = points.iter().map(|p| p.dot(axis));
+    d.clone().fold(f32::MIN, f32::max) - d.fold(f32::MAX, f32::min)
+}
+
+#[test]
+fn activation_through_the_component_shortens_the_muscle() {
+    let mut app = app();
+    let root = spawn_scene(&mut app, builtin_scene("T1"));
+    app.update();
+    let muscle = spawned(&app, root).muscles[0];
+    let axis = CoreVec3::X;
+    let rest = extent(&positions(&app, muscle), axis);
+    {
+        let mut m = app.world_mut().get_mut::<Muscle>(muscle).unwrap();
+        m.driven = false;
+        m.activation = 1.0;
+    }
+    for _ in 0..90 {
+        app.update();
+    }
+    let active = extent(&positions(&app, muscle), axis);
+    assert!(
+        active < 0.9 * rest,
+        "length along the fibres {active} vs rest {rest}"
+    );
+    let state = app.world().get::<MuscleState>(muscle).unwrap();
+    assert_eq!(state.muscle.params.activation, 1.0);
+}
+
+/// Moves the bone called "hook" to x = 0.1 from frame 10 on.
+fn move_hook(clock: Res<SinewClock>, mut bones: Query<(&SinewBone, &mut Transform)>) {
+    if clock.frame >= 10 {
+        for (bone, mut t) in &mut bones {
+            if bone.name == "hook" {
+                t.translation.x = 0.1;
+            }
+        }
+    }
+}
+
+#[test]
+fn a_bone_moved_by_a_system_drags_its_muscle_the_same_frame() {
+    let mut app = app();
+    app.add_systems(Update, move_hook);
+    let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
+    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
+    let muscle = app
+        .world_mut()
+        .spawn(
+            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
+                .roots(Roots::LongestAxisTips)
+                .attach(MuscleAttachment::vertex(bone, 0))
+                .params(MuscleParams::default()),
+        )
+        .id();
+    // The build runs on the async pool: wait for it without stepping far.
+    for _ in 0..200 {
+        app.update();
+        if app.world().get::<MuscleState>(muscle).is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let start = positions(&app, muscle)[0];
+    while app.world().resource::<SinewClock>().frame < 10 {
+        app.update();
+    }
+    assert!(positions(&app, muscle)[0].distance(start) < 1e-6);
+    // Frame 10: the system moves the bone in Update; the attached vertex
+    // follows in the same app update.
+    app.update();
+    let moved = positions(&app, muscle)[0];
+    assert!(
+        (moved.x - (start.x + 0.1)).abs() < 1e-5,
+        "attached vertex at {moved} after the bone moved 0.1 from {start}"
+    );
+}
+
+#[test]
+fn switching_method_at_runtime_keeps_the_simulation_finite_and_continuous() {
+    let mut app = app();
+    let root = spawn_scene(&mut app, builtin_scene("P1"));
+    let mut last: Option<Vec<CoreVec3>> = None;
+    let mut worst_step = 0.0f32;
+    for method in [
+        Method::Sequential,
+        Method::Jacobi { omega: 1.5 },
+        Method::Colored,
+        Method::Sequential,
+    ] {
+        app.world_mut().resource_mut::<SinewSettings>().method = method;
+        for _ in 0..40 {
+            app.update();
+            let now: Vec<CoreVec3> = spawned(&app, root)
+                .muscles
+                .iter()
+                .flat_map(|&e| positions(&app, e))
+                .collect();
+            assert!(now.iter().all(|p| p.is_finite()), "{method:?}: not finite");
+            if let Some(last) = &last {
+                let step = now
+                    .iter()
+                    .zip(last)
+                    .map(|(a, b)| a.distance(*b))
+                    .fold(0.0, f32::max);
+                worst_step = worst_step.max(step);
+            }
+            last = Some(now);
+        }
+    }
+    // Under one method P1 moves ≤ 0.5 mm a frame; switching (which builds
+    // the colour groups or the Jacobi incidence on the spot) stays smooth.
+    assert!(worst_step < 0.005, "largest per-frame move {worst_step} m");
+}
+
+#[test]
+fn despawning_a_muscle_mid_simulation_unlinks_it() {
+    let path = asset("scenes/p3.ron");
+    let mut app = app();
+    let root = spawn_scene(&mut app, SinewScene::load(&path).unwrap());
+    for _ in 0..30 {
+        app.update();
+    }
+    let muscles = spawned(&app, root).muscles;
+    let (gone, kept) = (muscles[1], muscles[0]);
+    assert!(
+        app.world()
+            .get::<MuscleTargets>(kept)
+            .unwrap()
+            .0
+            .contains(&gone),
+        "P3's first muscle targets the second"
+    );
+    app.world_mut().entity_mut(gone).despawn();
+    for _ in 0..30 {
+        app.update();
+    }
+    let targets = &app.world().get::<MuscleTargets>(kept).unwrap().0;
+    assert!(!targets.contains(&gone));
+    assert!(positions(&app, kept).iter().all(|p| p.is_finite()));
+    assert_eq!(app.world().resource::<SinewClock>().frame, 60);
+}
+
+#[test]
+fn invalid_settings_and_parameters_are_refused_without_harm() {
+    let mut app = app();
+    let root = spawn_scene(&mut app, builtin_scene("P1"));
+    app.update();
+    let muscle = spawned(&app, root).muscles[0];
+    app.world_mut().resource_mut::<SinewSettings>().dt = f32::NAN;
+    app.world_mut()
+        .get_mut::<Muscle>(muscle)
+        .unwrap()
+        .compliance
+        .fiber = -1.0;
+    for _ in 0..10 {
+        app.update();
+    }
+    let state = app.world().get::<MuscleState>(muscle).unwrap();
+    assert!(state.muscle.params.compliance.fiber >= 0.0);
+    assert!(positions(&app, muscle).iter().all(|p| p.is_finite()));
+    assert_eq!(app.world().resource::<SinewClock>().frame, 11);
+}
+
+#[test]
+fn a_failed_build_is_reported_on_the_entity() {
+    let mut app = app();
+    let e = app
+        .world_mut()
+        .spawn(MuscleBuilder::new(
+            "missing",
+            MuscleSource::File("no/such/file.obj".into(), Default::default()),
+        ))
+        .id();
+    for _ in 0..200 {
+        app.update();
+        if app.world().get::<BuildFailed>(e).is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let failed = app.world().get::<BuildFailed>(e).expect("reported");
+    assert!(failed.0.contains("file.obj"), "{}", failed.0);
+    assert!(app.world().get::<MuscleState>(e).is_none());
+}
