@@ -1,19 +1,31 @@
 //! Runs a scene headless (`MinimalPlugins`, no window) for N frames through
-//! the Bevy plug-in and prints the per-block timings. With `--compare` it
-//! also runs the plain `sinew_core` driver on the same scene and reports both
-//! medians and the ECS overhead.
+//! the Bevy plug-in and prints the per-block timings. With `--compare` the
+//! plain `sinew_core` driver steps the same scene in lockstep (same frames,
+//! same machine state), and both medians and the ECS overhead are reported.
 //!
 //! `cargo run --release --example headless -- assets/scenes/t5.ron 120 --compare`
 
 use bevy::prelude::*;
 use sinew::bevy::prelude::*;
+use sinew::core::StepTimings;
 use std::path::Path;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+fn print_blocks(title: &str, blocks: impl IntoIterator<Item = (&'static str, Duration)>) {
+    println!("{title}, last frame per block:");
+    for (name, d) in blocks {
+        println!("  {name:<15} {:8.3} ms", ms(d));
+    }
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -24,17 +36,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .next()
         .map_or("assets/scenes/p3.ron", |p| p.as_str());
     let frames: usize = positional.next().map_or(Ok(120), |f| f.parse())?;
-    let scene = SinewScene::load(Path::new(path))?;
-
-    let mut plain_ms = Vec::new();
-    if compare {
-        let mut solver = scene.scene.instantiate(Path::new(path).parent().unwrap())?;
-        for _ in 0..frames {
-            let start = Instant::now();
-            solver.step();
-            plain_ms.push(start.elapsed().as_secs_f64() * 1e3);
-        }
+    if frames < 2 {
+        return Err("run at least 2 frames (the first is left out of the medians)".into());
     }
+    let scene = SinewScene::load(Path::new(path))?;
+    let mut plain = if compare {
+        Some(scene.scene.instantiate(Path::new(path).parent().unwrap())?)
+    } else {
+        None
+    };
 
     let mut app = App::new();
     app.add_plugins((
@@ -44,30 +54,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ));
     app.world_mut()
         .spawn(SinewSceneRoot::Built(Arc::new(scene)));
-    let mut ecs_ms = Vec::new();
-    let mut solver_ms = Vec::new();
+    let (mut ecs_ms, mut blocks_ms, mut plain_ms) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..frames {
+        if let Some(solver) = &mut plain {
+            let start = Instant::now();
+            solver.step();
+            plain_ms.push(ms(start.elapsed()));
+        }
         let start = Instant::now();
         app.update();
-        ecs_ms.push(start.elapsed().as_secs_f64() * 1e3);
-        solver_ms.push(app.world().resource::<SinewTimings>().total.as_secs_f64() * 1e3);
+        ecs_ms.push(ms(start.elapsed()));
+        blocks_ms.push(ms(app.world().resource::<SinewTimings>().total));
     }
-    let timings = app.world().resource::<SinewTimings>();
-    println!("{path}: {frames} frames; last frame per block:");
-    for (name, d) in timings.blocks() {
-        println!("  {name:<15} {:8.3} ms", d.as_secs_f64() * 1e3);
+    println!("{path}: {frames} frames");
+    if let Some(solver) = &plain {
+        let t = solver.timings();
+        print_blocks(
+            "plain driver",
+            StepTimings::NAMES.into_iter().zip(t.as_array()),
+        );
     }
-    // The first update also spawns the scene: leave it out.
+    print_blocks(
+        "Bevy driver",
+        app.world().resource::<SinewTimings>().blocks(),
+    );
+    // The first frame links the targets (and, in the app, spawns the
+    // scene): leave it out of both.
     let ecs = median(ecs_ms[1..].to_vec());
     println!(
-        "Bevy driver: median app.update {ecs:.3} ms, blocks {:.3} ms",
-        median(solver_ms[1..].to_vec())
+        "Bevy driver: median app.update {ecs:.3} ms (blocks {:.3} ms)",
+        median(blocks_ms[1..].to_vec())
     );
-    if compare {
-        let plain = median(plain_ms);
+    if plain.is_some() {
+        let base = median(plain_ms[1..].to_vec());
         println!(
-            "plain driver: median step {plain:.3} ms; ECS overhead {:+.1} %",
-            (ecs / plain - 1.0) * 100.0
+            "plain driver: median step {base:.3} ms; ECS overhead {:+.1} %",
+            (ecs / base - 1.0) * 100.0
         );
     }
     Ok(())

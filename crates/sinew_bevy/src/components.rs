@@ -36,6 +36,9 @@ pub struct BonePose {
     pub previous: Affine3A,
     /// Pose at the end of the frame.
     pub current: Affine3A,
+    /// Pose at the end of the current substep (interpolated once per bone,
+    /// read by its target and by the attachments).
+    pub substep: Affine3A,
     /// Whether `current` was read from the bone; a fresh bone starts at rest
     /// (no motion in its first frame).
     pub initialized: bool,
@@ -47,6 +50,7 @@ impl BonePose {
         Self {
             previous: pose,
             current: pose,
+            substep: pose,
             initialized: true,
         }
     }

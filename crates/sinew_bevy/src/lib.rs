@@ -28,7 +28,7 @@
 //!   TransformSystems::Propagate
 //!   SinewSystems::ReadInputs        bone poses, activation (curves, sensors), parameters, links
 //!   SinewSystems::Substeps          runs SinewSubstepSchedule `substeps` times:
-//!       SinewSystems::Integrate         bone targets and attachment goals at the substep; predict
+//!       SinewSystems::Integrate         bones, their targets and attachment goals at the substep; predict
 //!       SinewSystems::Iterate           runs SinewIterationSchedule N times:
 //!           SinewIterationSystems::UpdateTargets   muscle snapshots
 //!           SinewIterationSystems::ClosestData     closest points on the targets
@@ -237,9 +237,9 @@ impl Plugin for SinewPlugin {
             .register_type::<Muscle>()
             .register_type::<MuscleTargets>()
             .register_type::<AttachmentBones>();
-        for (label, name) in [
-            (SinewSubstepSchedule.intern(), "substep"),
-            (SinewIterationSchedule.intern(), "iteration"),
+        for label in [
+            SinewSubstepSchedule.intern(),
+            SinewIterationSchedule.intern(),
         ] {
             let mut schedule = Schedule::new(label);
             // Both are short chains run many times a frame: the
@@ -247,7 +247,6 @@ impl Plugin for SinewPlugin {
             // parallel inside each system.
             schedule.set_executor(SingleThreadedExecutor::new());
             app.add_schedule(schedule);
-            debug!("sinew: {name} schedule added");
         }
         let schedule = self.schedule;
         app.configure_sets(
@@ -308,7 +307,11 @@ impl Plugin for SinewPlugin {
         .add_systems(
             SinewSubstepSchedule,
             (
-                (systems::pose_targets, systems::integrate)
+                (
+                    systems::pose_bones,
+                    systems::update_attachment_goals,
+                    systems::integrate,
+                )
                     .chain()
                     .in_set(SinewSystems::Integrate),
                 systems::run_iterations.in_set(SinewSystems::Iterate),

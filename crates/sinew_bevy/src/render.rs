@@ -185,7 +185,7 @@ fn write_muscle_meshes(
             }
         }
     }
-    timings.write_back += start.elapsed();
+    timings.step.write_back += start.elapsed();
 }
 
 /// Colours each muscle by its activation.

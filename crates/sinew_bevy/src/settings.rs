@@ -2,7 +2,7 @@
 
 use bevy::prelude::*;
 use sinew_core::constraints::ConstraintKind;
-use sinew_core::{ColorScope, SolverMethod, SolverSettings};
+use sinew_core::{ColorScope, SolverMethod, SolverSettings, StepTimings};
 use std::time::Duration;
 
 /// Projection method, as [`SolverMethod`] but reflectable (the panel and
@@ -164,28 +164,18 @@ pub struct SinewClock {
     pub frame: u64,
 }
 
-/// Where a frame's time went, per block (SPEC §4), and the frame rate the
-/// simulation alone would reach.
+/// Where a frame's time went, per block (SPEC §4, the core's
+/// [`StepTimings`]: the same blocks the plain driver reports), with a history
+/// for the panel's chart.
 #[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Resource)]
 pub struct SinewTimings {
-    /// Bone poses, activation, sensors, parameter edits, target links.
-    pub read_inputs: Duration,
-    /// Bone targets and attachment goals at the substeps; muscle snapshots.
-    pub update_targets: Duration,
-    /// Prediction.
-    pub integrate: Duration,
-    /// Closest points on the targets.
-    pub closest_data: Duration,
-    /// Constraint projection.
-    pub project: Duration,
-    /// Velocity update.
-    pub apply: Duration,
-    /// Render meshes rewritten.
-    pub write_back: Duration,
+    /// The blocks of the last step (of the step in progress while it runs).
+    #[reflect(ignore)]
+    pub step: StepTimings,
     /// Sum of the blocks of the last step.
     pub total: Duration,
-    /// The last `HISTORY` totals, oldest first (for the panel's chart).
+    /// The blocks of the last `HISTORY` steps in ms, oldest first.
     #[reflect(ignore)]
     pub history: std::collections::VecDeque<[f32; 7]>,
 }
@@ -194,36 +184,25 @@ impl SinewTimings {
     /// Frames kept in [`SinewTimings::history`].
     pub const HISTORY: usize = 240;
 
-    /// The blocks of the last step as `(name, duration)`.
-    pub fn blocks(&self) -> [(&'static str, Duration); 7] {
-        [
-            ("read inputs", self.read_inputs),
-            ("update targets", self.update_targets),
-            ("integrate", self.integrate),
-            ("closest data", self.closest_data),
-            ("project", self.project),
-            ("apply", self.apply),
-            ("write back", self.write_back),
-        ]
+    /// The blocks of the last step as `(name, duration)`, in the order of
+    /// [`StepTimings::NAMES`] (as in `history`).
+    pub fn blocks(&self) -> impl Iterator<Item = (&'static str, Duration)> + use<> {
+        StepTimings::NAMES.into_iter().zip(self.step.as_array())
     }
 
     /// Closes a step: sums the blocks and pushes them to the history.
     pub(crate) fn finish_step(&mut self) {
-        let blocks = self.blocks();
-        self.total = blocks.iter().map(|(_, d)| *d).sum();
+        self.total = self.step.total();
         if self.history.len() == Self::HISTORY {
             self.history.pop_front();
         }
         self.history
-            .push_back(blocks.map(|(_, d)| d.as_secs_f32() * 1e3));
+            .push_back(self.step.as_array().map(|d| d.as_secs_f32() * 1e3));
     }
 
     /// Zeroes the blocks for a new step (history is kept).
     pub(crate) fn start_step(&mut self) {
-        let history = std::mem::take(&mut self.history);
-        *self = Self {
-            history,
-            ..Default::default()
-        };
+        self.step = StepTimings::default();
+        self.total = Duration::ZERO;
     }
 }

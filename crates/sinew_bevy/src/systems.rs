@@ -169,7 +169,7 @@ pub(crate) fn begin_step(
         settings: s,
         ..default()
     };
-    lap(ctx.settings.timers, start, &mut timings.read_inputs);
+    lap(ctx.settings.timers, start, &mut timings.step.read_inputs);
 }
 
 /// A bone target added since the last step starts where its bone was.
@@ -203,22 +203,23 @@ pub(crate) fn read_bones(
         }
         pose.current = now;
     }
-    lap(ctx.settings.timers, start, &mut timings.read_inputs);
+    lap(ctx.settings.timers, start, &mut timings.step.read_inputs);
 }
 
 /// Activation curves and sensor rigs set the activation of driven muscles.
 pub(crate) fn read_activation(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
-    mut curves: Query<(&ActivationCurve, &mut Muscle)>,
+    mut muscles: Query<(&mut Muscle, Option<&ActivationCurve>)>,
     mut rigs: Query<&mut SensorRig>,
     bones: Query<&BonePose>,
-    mut muscles: Query<&mut Muscle, Without<ActivationCurve>>,
     mut poses: Local<Vec<Affine3A>>,
 ) {
     let start = Instant::now();
-    for (curve, mut muscle) in &mut curves {
-        if muscle.driven {
+    for (mut muscle, curve) in &mut muscles {
+        if let Some(curve) = curve
+            && muscle.driven
+        {
             muscle.activation = curve.0.sample(ctx.end_time);
         }
     }
@@ -232,21 +233,15 @@ pub(crate) fn read_activation(
         );
         let targets = &rig.muscles;
         rig.rig.update(&poses, ctx.end_time, ctx.dt, |m, a| {
-            let Some(&entity) = targets.get(m) else {
-                return;
-            };
-            if let Ok(mut muscle) = muscles.get_mut(entity)
-                && muscle.driven
-            {
-                muscle.activation = a;
-            } else if let Ok((_, mut muscle)) = curves.get_mut(entity)
+            if let Some(&entity) = targets.get(m)
+                && let Ok((mut muscle, _)) = muscles.get_mut(entity)
                 && muscle.driven
             {
                 muscle.activation = a;
             }
         });
     }
-    lap(ctx.settings.timers, start, &mut timings.read_inputs);
+    lap(ctx.settings.timers, start, &mut timings.step.read_inputs);
 }
 
 /// Pushes each muscle's live parameters into its built state and updates
@@ -277,7 +272,7 @@ pub(crate) fn sync_muscles(
             warn!("sinew: {w}");
         }
     }
-    lap(ctx.settings.timers, start, &mut timings.read_inputs);
+    lap(ctx.settings.timers, start, &mut timings.step.read_inputs);
 }
 
 /// Drops targets that are gone, marks which muscles are targeted, and links
@@ -287,7 +282,7 @@ pub(crate) fn link_muscles(
     mut timings: ResMut<SinewTimings>,
     mut muscles: Query<(Entity, &mut MuscleState, &mut MuscleTargets)>,
     bones: Query<&BoneTarget>,
-    mut snapshots: Query<(Entity, &mut MuscleSnapshot)>,
+    mut snapshots: Query<&mut MuscleSnapshot>,
 ) {
     let start = Instant::now();
     for (entity, mut state, mut targets) in &mut muscles {
@@ -301,41 +296,33 @@ pub(crate) fn link_muscles(
         }
     }
     if muscles.iter().all(|(_, state, _)| state.linked) {
-        lap(ctx.settings.timers, start, &mut timings.read_inputs);
+        lap(ctx.settings.timers, start, &mut timings.step.read_inputs);
         return;
     }
     // Link against every targeted muscle's current geometry.
-    for (entity, mut snapshot) in &mut snapshots {
-        let targeted = muscles.iter().any(|(_, _, t)| t.0.contains(&entity));
-        snapshot.targeted = targeted;
-        if let Ok((_, state, _)) = muscles.get(entity)
-            && targeted
-        {
+    for (entity, state, _) in &muscles {
+        let Ok(mut snapshot) = snapshots.get_mut(entity) else {
+            continue;
+        };
+        snapshot.targeted = muscles.iter().any(|(_, _, t)| t.0.contains(&entity));
+        if snapshot.targeted {
             stage::publish(&mut snapshot.surface, &state.muscle, true);
         }
     }
+    let published = snapshots.as_readonly();
     for (_, mut state, targets) in &mut muscles {
         if state.linked {
             continue;
         }
-        let surfaces: Option<Vec<&TargetSurface>> = targets
-            .0
-            .iter()
-            .map(|&e| {
-                bones
-                    .get(e)
-                    .map(|b| &b.0)
-                    .or_else(|_| snapshots.get(e).map(|(_, s)| &s.surface))
-                    .ok()
-            })
-            .collect();
-        let Some(surfaces) = surfaces else { continue };
+        let Some(surfaces) = gather_targets(&targets, &bones, &published) else {
+            continue;
+        };
         let state = &mut *state;
         state.muscle.target_ids = (0..surfaces.len()).collect();
         stage::link_muscle(&mut state.muscle, surfaces.as_slice());
         state.linked = true;
     }
-    lap(ctx.settings.timers, start, &mut timings.read_inputs);
+    lap(ctx.settings.timers, start, &mut timings.step.read_inputs);
 }
 
 // -------------------------------------------------------------- substeps ----
@@ -361,21 +348,30 @@ pub(crate) fn run_substeps(world: &mut World) {
     }
 }
 
-/// Bones and attachment goals at the substep's end time.
-pub(crate) fn pose_targets(
+/// Every bone's pose at the substep's end time, and its target moved there.
+pub(crate) fn pose_bones(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
-    mut bones: Query<(&BonePose, &mut BoneTarget)>,
+    mut bones: Query<(&mut BonePose, Option<&mut BoneTarget>)>,
+) {
+    let start = Instant::now();
+    for (mut pose, target) in &mut bones {
+        pose.substep = interpolate_rigid(pose.previous, pose.current, ctx.alpha);
+        if let Some(mut target) = target {
+            target.0.set_transform(pose.substep);
+        }
+    }
+    lap(ctx.settings.timers, start, &mut timings.step.update_targets);
+}
+
+/// Attachment goals at the substep's end time.
+pub(crate) fn update_attachment_goals(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
     mut muscles: Query<(&mut MuscleState, &AttachmentBones)>,
     poses: Query<&BonePose>,
 ) {
     let start = Instant::now();
-    let alpha = ctx.alpha;
-    for (pose, mut target) in &mut bones {
-        target
-            .0
-            .set_transform(interpolate_rigid(pose.previous, pose.current, alpha));
-    }
     for (mut state, attached) in &mut muscles {
         let state = &mut *state;
         // A bone that has gone keeps its last pose: its attachments stay put.
@@ -384,7 +380,7 @@ pub(crate) fn pose_targets(
             .resize(attached.0.len(), Affine3A::IDENTITY);
         for (cached, &bone) in state.bone_poses.iter_mut().zip(&attached.0) {
             if let Ok(p) = poses.get(bone) {
-                *cached = interpolate_rigid(p.previous, p.current, alpha);
+                *cached = p.substep;
             }
         }
         let cached = &state.bone_poses;
@@ -394,7 +390,7 @@ pub(crate) fn pose_targets(
         };
         stage::update_attachment_goals(&mut state.muscle, &pose);
     }
-    lap(ctx.settings.timers, start, &mut timings.update_targets);
+    lap(ctx.settings.timers, start, &mut timings.step.update_targets);
 }
 
 /// Prediction, pins, λ = 0 (and the momentum a free muscle keeps).
@@ -412,7 +408,7 @@ pub(crate) fn integrate(
         let state = &mut *state;
         state.momentum = stage::begin_substep(&mut state.muscle, gravity, h, damping_exp);
     });
-    lap(s.timers, start, &mut timings.integrate);
+    lap(s.timers, start, &mut timings.step.integrate);
 }
 
 /// Runs the iteration schedule `iterations` times.
@@ -446,7 +442,7 @@ pub(crate) fn apply_predictions(
         let state = &mut *state;
         stage::end_substep(&mut state.muscle, h, state.momentum);
     });
-    lap(ctx.settings.timers, start, &mut timings.apply);
+    lap(ctx.settings.timers, start, &mut timings.step.apply);
 }
 
 // ------------------------------------------------------------ iterations ----
@@ -464,7 +460,7 @@ pub(crate) fn publish_snapshots(
             stage::publish(&mut snapshot.surface, &state.muscle, first);
         }
     }
-    lap(ctx.settings.timers, start, &mut timings.update_targets);
+    lap(ctx.settings.timers, start, &mut timings.step.update_targets);
 }
 
 /// Closest points on the targets (BE5).
@@ -499,7 +495,7 @@ pub(crate) fn closest_data(
             stage::closest_data(m, surfaces.as_slice(), search);
         }
     });
-    lap(s.timers, start, &mut timings.closest_data);
+    lap(s.timers, start, &mut timings.step.closest_data);
 }
 
 /// Projects every constraint once (BE6), with the configured method.
@@ -534,7 +530,7 @@ pub(crate) fn project(
         }
         stage::project_iteration(m, method, order, surfaces.as_slice(), inv_h2, parallel);
     });
-    lap(s.timers, start, &mut timings.project);
+    lap(s.timers, start, &mut timings.step.project);
 }
 
 // ------------------------------------------------------------ write back ----

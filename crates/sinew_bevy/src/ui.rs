@@ -159,7 +159,7 @@ fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
 }
 
 fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {
-    for (i, (name, d)) in timings.blocks().iter().enumerate() {
+    for (i, (name, d)) in timings.blocks().enumerate() {
         ui.horizontal(|ui| {
             ui.colored_label(BLOCK_COLORS[i], "■");
             ui.label(format!("{name:<15} {:7.3} ms", d.as_secs_f64() * 1e3));

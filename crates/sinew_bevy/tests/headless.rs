@@ -4,6 +4,7 @@
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
+use sinew_core::Solver;
 use sinew_core::animation::TransformKey;
 use sinew_core::glam::Vec3 as CoreVec3;
 use sinew_core::mesh::primitives::thesis_oval;
@@ -51,52 +52,66 @@ fn builtin_scene(name: &str) -> SinewScene {
     SinewScene::build(builtin(name).unwrap(), Path::new(".")).unwrap()
 }
 
-#[test]
-fn bevy_and_plain_drivers_agree_bit_for_bit_on_p3() {
-    let path = asset("scenes/p3.ron");
-    let mut plain = Scene::load(&path)
-        .unwrap()
-        .instantiate(path.parent().unwrap())
-        .unwrap();
+/// The plain driver and an app with the same scene spawned, not stepped yet.
+fn both_drivers(scene: Scene, base_dir: &Path) -> (Solver, App, Entity) {
+    let plain = scene.instantiate(base_dir).unwrap();
     let mut app = app();
-    let root = spawn_scene(&mut app, SinewScene::load(&path).unwrap());
-    for _ in 0..300 {
+    let root = spawn_scene(&mut app, SinewScene::build(scene, base_dir).unwrap());
+    (plain, app, root)
+}
+
+/// Steps both drivers `frames` times.
+fn step_both(plain: &mut Solver, app: &mut App, frames: usize) {
+    for _ in 0..frames {
         plain.step();
         app.update();
     }
-    let muscles = spawned(&app, root).muscles;
+}
+
+/// Every vertex of every muscle has the same bits in both drivers.
+fn assert_same_bits(plain: &Solver, app: &App, root: Entity) {
+    let muscles = spawned(app, root).muscles;
     assert_eq!(muscles.len(), plain.muscles().len());
     for (m, &e) in plain.muscles().iter().zip(&muscles) {
-        let ecs = positions(&app, e);
-        let same =
-            m.x.iter()
+        let ecs = positions(app, e);
+        let same = m.x.len() == ecs.len()
+            && m.x
+                .iter()
                 .zip(&ecs)
                 .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
-        assert!(same, "muscle '{}' differs after 300 frames", m.name);
+        assert!(
+            same,
+            "muscle '{}' differs after {} frames",
+            m.name,
+            plain.frame()
+        );
     }
+}
+
+fn p3() -> (Scene, PathBuf) {
+    let path = asset("scenes/p3.ron");
+    let base = path.parent().unwrap().to_path_buf();
+    (Scene::load(&path).unwrap(), base)
+}
+
+#[test]
+fn bevy_and_plain_drivers_agree_bit_for_bit_on_p3() {
+    let (scene, base) = p3();
+    let (mut plain, mut app, root) = both_drivers(scene, &base);
+    step_both(&mut plain, &mut app, 300);
+    assert_same_bits(&plain, &app, root);
     assert_eq!(app.world().resource::<SinewClock>().frame, 300);
 }
 
 #[test]
 fn muscles_in_parallel_give_the_same_bits() {
-    let path = asset("scenes/p3.ron");
-    let mut plain = Scene::load(&path)
-        .unwrap()
-        .instantiate(path.parent().unwrap())
-        .unwrap();
-    let mut app = app();
-    let root = spawn_scene(&mut app, SinewScene::load(&path).unwrap());
-    plain.step();
-    app.update();
+    let (scene, base) = p3();
+    let (mut plain, mut app, root) = both_drivers(scene, &base);
+    step_both(&mut plain, &mut app, 1);
     // par_iter over muscles on the compute pool, rayon inside them.
     app.world_mut().resource_mut::<SinewSettings>().threads = 4;
-    for _ in 1..100 {
-        plain.step();
-        app.update();
-    }
-    for (m, &e) in plain.muscles().iter().zip(&spawned(&app, root).muscles) {
-        assert_eq!(m.x, positions(&app, e), "muscle '{}'", m.name);
-    }
+    step_both(&mut plain, &mut app, 99);
+    assert_same_bits(&plain, &app, root);
 }
 
 #[test]
@@ -116,16 +131,9 @@ fn bevy_and_plain_drivers_agree_with_an_animated_bone() {
             rotation: Quat::from_rotation_z(0.2),
         },
     ];
-    let mut plain = scene.instantiate(Path::new(".")).unwrap();
-    let mut app = app();
-    let root = spawn_scene(&mut app, SinewScene::build(scene, Path::new(".")).unwrap());
-    for _ in 0..90 {
-        plain.step();
-        app.update();
-    }
-    for (m, &e) in plain.muscles().iter().zip(&spawned(&app, root).muscles) {
-        assert_eq!(m.x, positions(&app, e), "muscle '{}'", m.name);
-    }
+    let (mut plain, mut app, root) = both_drivers(scene, Path::new("."));
+    step_both(&mut plain, &mut app, 90);
+    assert_same_bits(&plain, &app, root);
 }
 
 /// Extent of `points` along `axis`.
