@@ -8,7 +8,7 @@
 use crate::components::MuscleState;
 use bevy::prelude::*;
 use sinew_core::constraints::ConstraintKind;
-use sinew_core::solver::coloring::{ColorGroups, particles_of};
+use sinew_core::solver::coloring::{ColorPlan, PlanKind, particles_of};
 use std::collections::HashMap;
 
 /// Which debug views are drawn.
@@ -65,7 +65,7 @@ fn draw(
     view: Res<SinewDebugView>,
     muscles: Query<(Entity, &MuscleState)>,
     mut gizmos: Gizmos,
-    mut groups: Local<HashMap<Entity, ColorGroups>>,
+    mut plans: Local<HashMap<Entity, ColorPlan>>,
 ) {
     let v = *view;
     for (entity, state) in &muscles {
@@ -116,24 +116,31 @@ fn draw(
             }
         }
         if v.colors {
-            let groups = match &m.colors {
-                Some(state) => &state.groups,
-                None => groups
-                    .entry(entity)
-                    .or_insert_with(|| ColorGroups::greedy(m, &ConstraintKind::CANONICAL_ORDER)),
+            // The plan the solver runs on, else the thesis' colouring.
+            let plan = match &m.colors {
+                Some(plan) => plan,
+                None => plans.entry(entity).or_insert_with(|| {
+                    ColorPlan::build(m, &ConstraintKind::CANONICAL_ORDER, PlanKind::PerConstraint)
+                }),
             };
-            for (g, group) in groups.groups.iter().enumerate() {
-                let color = hue(g);
-                for &c in group {
-                    if let [Some(a), Some(b)] = particles_of(m, c) {
-                        gizmos.line(p[a as usize], p[b as usize], color);
-                    }
+            let mut edge = |c, color| {
+                if let [Some(a), Some(b)] = particles_of(m, c) {
+                    gizmos.line(p[a as usize], p[b as usize], color);
                 }
+            };
+            for color in 0..plan.color_count() {
+                for &c in plan.units_of(color).flatten() {
+                    edge(c, hue(color));
+                }
+            }
+            // Hybrid's Jacobi tail in grey.
+            for &c in plan.tail() {
+                edge(c, Color::srgb(0.5, 0.5, 0.5));
             }
         }
     }
     if !v.colors {
-        groups.clear();
+        plans.clear();
     }
 }
 

@@ -12,21 +12,38 @@ pub enum Method {
     /// Gauss–Seidel, the reference ([`SolverMethod::Sequential`]).
     #[default]
     Sequential,
-    /// Per-muscle graph colouring ([`SolverMethod::Colored`]).
+    /// Per-muscle graph colouring, one constraint at a time (the thesis;
+    /// [`ColorScope::PerMuscle`]).
     Colored,
+    /// Clustered colouring, colour by colour across muscles
+    /// ([`ColorScope::Global`]).
+    ColoredGlobal,
     /// Jacobi with over-relaxation `omega` ∈ [1, 2] ([`SolverMethod::Jacobi`]).
     Jacobi {
         /// Over-relaxation.
+        omega: f32,
+    },
+    /// Colour groups of at least `min_group` constraints Gauss–Seidel, the
+    /// tail Jacobi with over-relaxation `omega` ([`SolverMethod::Hybrid`]).
+    Hybrid {
+        /// Smallest colour group solved Gauss–Seidel.
+        min_group: u32,
+        /// Over-relaxation of the Jacobi tail.
         omega: f32,
     },
 }
 
 impl Method {
     /// Every method `sinew_core` offers, with default parameters (for menus).
-    pub const ALL: [Method; 3] = [
+    pub const ALL: [Method; 5] = [
         Method::Sequential,
         Method::Colored,
+        Method::ColoredGlobal,
         Method::Jacobi { omega: 1.5 },
+        Method::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
     ];
 
     /// A short name.
@@ -34,7 +51,9 @@ impl Method {
         match self {
             Method::Sequential => "Sequential",
             Method::Colored => "Colored (per muscle)",
+            Method::ColoredGlobal => "Colored (global)",
             Method::Jacobi { .. } => "Jacobi",
+            Method::Hybrid { .. } => "Hybrid",
         }
     }
 }
@@ -46,7 +65,11 @@ impl From<Method> for SolverMethod {
             Method::Colored => SolverMethod::Colored {
                 scope: ColorScope::PerMuscle,
             },
+            Method::ColoredGlobal => SolverMethod::Colored {
+                scope: ColorScope::Global,
+            },
             Method::Jacobi { omega } => SolverMethod::Jacobi { omega },
+            Method::Hybrid { min_group, omega } => SolverMethod::Hybrid { min_group, omega },
         }
     }
 }
@@ -55,8 +78,14 @@ impl From<SolverMethod> for Method {
     fn from(m: SolverMethod) -> Self {
         match m {
             SolverMethod::Sequential => Method::Sequential,
-            SolverMethod::Colored { .. } => Method::Colored,
+            SolverMethod::Colored {
+                scope: ColorScope::PerMuscle,
+            } => Method::Colored,
+            SolverMethod::Colored {
+                scope: ColorScope::Global,
+            } => Method::ColoredGlobal,
             SolverMethod::Jacobi { omega } => Method::Jacobi { omega },
+            SolverMethod::Hybrid { min_group, omega } => Method::Hybrid { min_group, omega },
         }
     }
 }

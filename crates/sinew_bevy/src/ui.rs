@@ -131,8 +131,11 @@ fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
                 }
             }
         });
-    if let Method::Jacobi { omega } = &mut s.method {
+    if let Method::Jacobi { omega } | Method::Hybrid { omega, .. } = &mut s.method {
         ui.add(egui::Slider::new(omega, 1.0..=2.0).text("ω (over-relaxation)"));
+    }
+    if let Method::Hybrid { min_group, .. } = &mut s.method {
+        ui.add(egui::Slider::new(min_group, 1..=512).text("smallest Gauss–Seidel group"));
     }
     ui.add(egui::Slider::new(&mut s.iterations, 1..=50).text("iterations"));
     ui.add(egui::Slider::new(&mut s.substeps, 1..=16).text("substeps"));

@@ -115,6 +115,26 @@ fn muscles_in_parallel_give_the_same_bits() {
 }
 
 #[test]
+fn global_sweeps_give_the_bits_of_muscle_by_muscle_runs() {
+    // The plain solver on 2 threads runs colour c of every muscle in one
+    // parallel sweep; the Bevy systems run each muscle's colours in turn.
+    for method in [
+        Method::ColoredGlobal,
+        Method::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
+    ] {
+        let (mut scene, base) = p3();
+        scene.settings.method = method.into();
+        scene.settings.threads = 2;
+        let (mut plain, mut app, root) = both_drivers(scene, &base);
+        step_both(&mut plain, &mut app, 60);
+        assert_same_bits(&plain, &app, root);
+    }
+}
+
+#[test]
 fn bevy_and_plain_drivers_agree_with_an_animated_bone() {
     // P2 with its ground plane keyframed: rising and tilting over a second.
     let mut scene = builtin("P2").unwrap();
@@ -226,6 +246,11 @@ fn switching_method_at_runtime_keeps_the_simulation_finite_and_continuous() {
         Method::Sequential,
         Method::Jacobi { omega: 1.5 },
         Method::Colored,
+        Method::ColoredGlobal,
+        Method::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
         Method::Sequential,
     ] {
         app.world_mut().resource_mut::<SinewSettings>().method = method;

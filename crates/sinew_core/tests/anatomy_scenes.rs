@@ -137,3 +137,24 @@ fn t7_is_the_full_body_in_one_scene() {
     let total = total_constraints(&solver);
     assert!((127_000..=136_000).contains(&total), "{total}");
 }
+
+/// The clustered (global) colouring needs at most 16 sweeps per iteration on
+/// the arm with its internal structure on; the thesis' per-constraint
+/// colouring needs more (24 here, 65 in the thesis' biceps).
+#[test]
+fn global_colouring_of_the_arm_needs_at_most_16_sweeps() {
+    use sinew_core::constraints::ConstraintKind;
+    use sinew_core::solver::coloring::{ColorPlan, PlanKind};
+    let (_, mut solver) = load("t5");
+    solver.prepare();
+    let order = ConstraintKind::CANONICAL_ORDER;
+    let mut sweeps = 0;
+    let mut thesis = 0;
+    for m in solver.muscles() {
+        assert!(m.counts().get(ConstraintKind::Internal) > 0);
+        sweeps = sweeps.max(ColorPlan::build(m, &order, PlanKind::Clustered).color_count());
+        thesis = thesis.max(ColorPlan::build(m, &order, PlanKind::PerConstraint).color_count());
+    }
+    assert!(sweeps <= 16, "{sweeps} sweeps");
+    assert!(thesis > sweeps, "thesis {thesis} vs clustered {sweeps}");
+}

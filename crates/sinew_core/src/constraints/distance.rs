@@ -27,7 +27,7 @@
 //! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
 //! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
-use super::{ConstraintBatch, Correction, delta_lambda};
+use super::{ConstraintBatch, Correction, Particles, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -169,20 +169,33 @@ impl ConstraintBatch for DistanceBatch {
         &mut self.lambda
     }
 
-    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+    fn lambdas(&self) -> &[f32] {
+        &self.lambda
+    }
+
+    #[inline]
+    fn correction_at<P: Particles + ?Sized>(
+        &self,
+        i: usize,
+        lambda: f32,
+        p: &P,
+        w: &[f32],
+        inv_dt2: f32,
+    ) -> Option<Correction> {
         let alpha = self.compliance * inv_dt2;
         let (ia, ib) = (self.a[i] as usize, self.b[i] as usize);
-        let d = p[ia] - p[ib];
+        let (pa, pb) = (p.at(ia), p.at(ib));
+        let d = pa - pb;
         let len = d.length();
         if len < 1e-9 {
             return None;
         }
         let (wa, wb) = (w[ia], w[ib]);
-        let dl = delta_lambda(len - self.rest[i], self.lambda[i], wa + wb, alpha);
+        let dl = delta_lambda(len - self.rest[i], lambda, wa + wb, alpha);
         let n = d * (dl / len);
-        let mut to_a = p[ia];
+        let mut to_a = pa;
         to_a += wa * n;
-        let mut to_b = p[ib];
+        let mut to_b = pb;
         to_b -= wb * n;
         Some(Correction::two(dl, (self.a[i], to_a), (self.b[i], to_b)))
     }

@@ -98,6 +98,10 @@ impl ConstraintKind {
     }
 }
 
+/// The multipliers of a muscle's eight batched constraint types, taken out
+/// for a parallel sweep, indexed by [`ConstraintKind`] (Volume apart).
+pub(crate) type MuscleLambdas = [Vec<f32>; 8];
+
 /// Constraint counts per type.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ConstraintCounts(pub [usize; 9]);
@@ -164,6 +168,20 @@ impl Correction {
     }
 }
 
+/// Read access to particle positions: a slice, or the disjoint view a
+/// parallel colour sweep hands each of its threads.
+pub trait Particles {
+    /// Position of particle `i`.
+    fn at(&self, i: usize) -> Vec3;
+}
+
+impl Particles for [Vec3] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> Vec3 {
+        self[i]
+    }
+}
+
 /// A batch of constraints of one type, projected one at a time
 /// (Gauss–Seidel, [`ConstraintBatch::solve`]) or a colour group at a time
 /// (compute every [`Correction`], then [`ConstraintBatch::commit`] them).
@@ -171,10 +189,29 @@ pub trait ConstraintBatch {
     /// Number of constraints.
     fn count(&self) -> usize;
 
-    /// Projection of constraint `i` at `p`, not yet written (`None`: nothing to do).
-    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction>;
+    /// Projection of constraint `i` with accumulated multiplier `lambda` at
+    /// positions `p`, not yet written (`None`: nothing to do). The kernel
+    /// every method shares.
+    fn correction_at<P: Particles + ?Sized>(
+        &self,
+        i: usize,
+        lambda: f32,
+        p: &P,
+        w: &[f32],
+        inv_dt2: f32,
+    ) -> Option<Correction>;
+
+    /// Projection of constraint `i` at `p` with its own multiplier, not yet
+    /// written (`None`: nothing to do).
+    #[inline]
+    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+        self.correction_at(i, self.lambdas()[i], p, w, inv_dt2)
+    }
 
     /// The accumulated multipliers.
+    fn lambdas(&self) -> &[f32];
+
+    /// The accumulated multipliers, to write.
     fn lambdas_mut(&mut self) -> &mut [f32];
 
     /// Writes a correction of constraint `i`.

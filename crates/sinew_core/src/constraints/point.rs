@@ -8,7 +8,7 @@
 //! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
 //! ```
 
-use super::{ConstraintBatch, Correction, delta_lambda};
+use super::{ConstraintBatch, Correction, Particles, delta_lambda};
 use glam::Vec3;
 
 /// A batch of single-particle constraints towards goal points.
@@ -62,19 +62,32 @@ impl ConstraintBatch for PointBatch {
         &mut self.lambda
     }
 
-    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+    fn lambdas(&self) -> &[f32] {
+        &self.lambda
+    }
+
+    #[inline]
+    fn correction_at<P: Particles + ?Sized>(
+        &self,
+        i: usize,
+        lambda: f32,
+        p: &P,
+        w: &[f32],
+        inv_dt2: f32,
+    ) -> Option<Correction> {
         let alpha = self.compliance[i] * inv_dt2;
         if !alpha.is_finite() {
             return None;
         }
         let k = self.particle[i] as usize;
-        let d = p[k] - self.goal[i];
+        let x = p.at(k);
+        let d = x - self.goal[i];
         let len = d.length();
         if len < 1e-9 {
             return None;
         }
-        let dl = delta_lambda(len - self.rest[i], self.lambda[i], w[k], alpha);
-        let mut to = p[k];
+        let dl = delta_lambda(len - self.rest[i], lambda, w[k], alpha);
+        let mut to = x;
         to += d * (w[k] * dl / len);
         Some(Correction::one(dl, self.particle[i], to))
     }

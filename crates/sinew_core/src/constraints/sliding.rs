@@ -13,7 +13,7 @@
 //! non-compliant position projection (bones do not give way), then the
 //! compliant gap equality acts as usual.
 
-use super::{ConstraintBatch, Correction, delta_lambda};
+use super::{ConstraintBatch, Correction, Particles, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -96,13 +96,26 @@ impl ConstraintBatch for SlidingBatch {
         &mut self.lambda
     }
 
-    fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
+    fn lambdas(&self) -> &[f32] {
+        &self.lambda
+    }
+
+    #[inline]
+    fn correction_at<P: Particles + ?Sized>(
+        &self,
+        i: usize,
+        lambda: f32,
+        p: &P,
+        w: &[f32],
+        inv_dt2: f32,
+    ) -> Option<Correction> {
         let alpha = self.compliance[i] * inv_dt2;
         if !alpha.is_finite() {
             return None;
         }
         let k = self.particle[i] as usize;
-        let mut x = p[k];
+        let start = p.at(k);
+        let mut x = start;
         let t = self.target[i];
         if t != u32::MAX && w[k] > 0.0 && self.rigid.get(t as usize) == Some(&true) {
             let slot = i * self.targets + t as usize;
@@ -112,13 +125,13 @@ impl ConstraintBatch for SlidingBatch {
             }
         }
         let Some((c, g)) = self.value_and_gradient(i, x) else {
-            return (x != p[k]).then(|| Correction::one(0.0, self.particle[i], x));
+            return (x != start).then(|| Correction::one(0.0, self.particle[i], x));
         };
-        let mut dl = delta_lambda(c, self.lambda[i], w[k] * g.length_squared(), alpha);
+        let mut dl = delta_lambda(c, lambda, w[k] * g.length_squared(), alpha);
         if self.mode == SlidingMode::Contact {
             // Unilateral: total λ stays ≥ 0 (it may only push outwards).
-            let total = (self.lambda[i] + dl).max(0.0);
-            dl = total - self.lambda[i];
+            let total = (lambda + dl).max(0.0);
+            dl = total - lambda;
         }
         x += g * (w[k] * dl);
         Some(Correction::one(dl, self.particle[i], x))

@@ -159,6 +159,36 @@ impl MuscleConstraints {
         c
     }
 
+    /// Moves the multipliers of the batched types out (for a parallel
+    /// sweep), indexed by [`ConstraintKind`]; the batches keep empty ones
+    /// until [`MuscleConstraints::restore_lambdas`].
+    pub(crate) fn take_lambdas(&mut self) -> crate::constraints::MuscleLambdas {
+        use std::mem::take;
+        [
+            take(&mut self.attach.lambda),
+            take(&mut self.branch_attach.lambda),
+            take(&mut self.hard.lambda),
+            take(&mut self.soft.lambda),
+            take(&mut self.sliding.lambda),
+            take(&mut self.branch.lambda),
+            take(&mut self.internal.lambda),
+            take(&mut self.fiber.lambda),
+        ]
+    }
+
+    /// Puts back what [`MuscleConstraints::take_lambdas`] took.
+    pub(crate) fn restore_lambdas(&mut self, lambdas: crate::constraints::MuscleLambdas) {
+        let [a, ba, h, so, sl, b, i, f] = lambdas;
+        self.attach.lambda = a;
+        self.branch_attach.lambda = ba;
+        self.hard.lambda = h;
+        self.soft.lambda = so;
+        self.sliding.lambda = sl;
+        self.branch.lambda = b;
+        self.internal.lambda = i;
+        self.fiber.lambda = f;
+    }
+
     /// Resets every λ to 0 (start of each frame or substep).
     pub fn clear_lambdas(&mut self) {
         for b in [
@@ -224,13 +254,19 @@ pub struct Muscle {
     pub constraints: MuscleConstraints,
     /// Closest data per (vertex, target slot): `closest[v * targets + t]`.
     pub closest: Vec<Option<ClosestHit>>,
+    /// Bone contacts' clearance per (Sliding constraint, target slot), as
+    /// `closest`: where the vertex was, in the bone's frame, and how far it
+    /// was from the bone then (0 = unknown). A rigid bone's distance is
+    /// 1-Lipschitz in the vertex position, so while the vertex stays within
+    /// that distance of that point it cannot have entered the bone.
+    pub clearance: Vec<glam::Vec4>,
     /// Per-vertex maps given at build time.
     pub maps: VertexMaps,
     /// Activation was outside [0, 1] and has been reported.
     pub activation_reported: bool,
     /// Colour groups for [`crate::SolverMethod::Colored`], built on first use
     /// and dropped when the target connections are rebuilt.
-    pub colors: Option<crate::solver::coloring::ColoredState>,
+    pub colors: Option<crate::solver::coloring::ColorPlan>,
     /// Incidence and scratch for [`crate::SolverMethod::Jacobi`], built on
     /// first use and dropped when the target connections are rebuilt.
     pub jacobi: Option<crate::solver::jacobi::JacobiState>,
@@ -380,6 +416,7 @@ impl Muscle {
             target_ids: Vec::new(),
             constraints: MuscleConstraints::default(),
             closest: Vec::new(),
+            clearance: Vec::new(),
             maps,
             activation_reported: false,
             colors: None,

@@ -15,7 +15,9 @@
 //! number of surface vertices tied to one internal point (SPEC §9.3,
 //! Appendix A: 65 groups for the biceps, 16 of them with one constraint).
 
-use crate::constraints::{ConstraintBatch, ConstraintKind, Correction};
+use super::jacobi::JacobiState;
+use super::sweep;
+use crate::constraints::{ConstraintBatch, ConstraintCounts, ConstraintKind, Correction};
 use crate::muscle::Muscle;
 
 /// One constraint of a muscle: its type and index in that type's batch.
@@ -76,26 +78,14 @@ pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<Constra
 impl ColorGroups {
     /// Greedy first-fit colouring in creation order (`order`, type by type).
     pub fn greedy(m: &Muscle, order: &[ConstraintKind]) -> Self {
-        let particles = m.x.len();
-        // used[g][p]: particle p is already moved by a constraint of group g.
-        let mut used: Vec<Vec<bool>> = Vec::new();
-        let mut groups: Vec<Vec<ConstraintRef>> = Vec::new();
-        for c in constraints_in_order(m, order) {
-            let touched = particles_of(m, c);
-            let free = |mask: &Vec<bool>| touched.iter().flatten().all(|&p| !mask[p as usize]);
-            let g = match used.iter().position(free) {
-                Some(g) => g,
-                None => {
-                    used.push(vec![false; particles]);
-                    groups.push(Vec::new());
-                    groups.len() - 1
-                }
-            };
-            for &p in touched.iter().flatten() {
-                used[g][p as usize] = true;
-            }
-            groups[g].push(c);
-        }
+        let units: Vec<Vec<ConstraintRef>> = constraints_in_order(m, order)
+            .into_iter()
+            .map(|c| vec![c])
+            .collect();
+        let groups = greedy_units(m, &units)
+            .into_iter()
+            .map(|color| color.into_iter().map(|u| units[u][0]).collect())
+            .collect();
         Self { groups }
     }
 
@@ -115,30 +105,298 @@ impl ColorGroups {
     }
 }
 
-/// A muscle's colour groups and the scratch a parallel sweep writes into.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ColoredState {
-    /// The groups.
-    pub groups: ColorGroups,
-    /// One slot per constraint of the largest group.
-    corrections: Vec<Option<Correction>>,
+/// Greedy first-fit over units (runs of constraints one thread solves in
+/// order): each unit, in the given order, joins the first colour none of
+/// whose units shares a particle with it. Returns unit indices per colour.
+fn greedy_units(m: &Muscle, units: &[Vec<ConstraintRef>]) -> Vec<Vec<usize>> {
+    let particles = m.x.len();
+    // used[c][p]: particle p is already moved by a unit of colour c.
+    let mut used: Vec<Vec<bool>> = Vec::new();
+    let mut colors: Vec<Vec<usize>> = Vec::new();
+    let mut touched = Vec::new();
+    for (u, unit) in units.iter().enumerate() {
+        touched.clear();
+        touched.extend(unit.iter().flat_map(|&c| particles_of(m, c)).flatten());
+        let free = |mask: &Vec<bool>| touched.iter().all(|&p| !mask[p as usize]);
+        let c = match used.iter().position(free) {
+            Some(c) => c,
+            None => {
+                used.push(vec![false; particles]);
+                colors.push(Vec::new());
+                colors.len() - 1
+            }
+        };
+        for &p in &touched {
+            used[c][p as usize] = true;
+        }
+        colors[c].push(u);
+    }
+    colors
 }
 
-impl ColoredState {
-    /// Greedy groups of `m` in `order` (see [`ColorGroups::greedy`]).
-    pub fn new(m: &Muscle, order: &[ConstraintKind]) -> Self {
-        let groups = ColorGroups::greedy(m, order);
-        let largest = groups.groups.iter().map(Vec::len).max().unwrap_or(0);
-        Self {
-            groups,
-            corrections: vec![None; largest],
+/// How a [`ColorPlan`] was built; a plan is rebuilt when the method asks for
+/// another.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanKind {
+    /// One constraint per unit, greedy in creation order (the thesis' SMT-G).
+    PerConstraint,
+    /// Clustered units (see [`ColorPlan::clustered`]).
+    Clustered,
+    /// Per-constraint colours of at least `min_group` constraints; the rest
+    /// is a Jacobi tail.
+    Hybrid {
+        /// Smallest colour solved Gauss–Seidel.
+        min_group: u32,
+    },
+}
+
+/// Constraints per parallel chunk of a colour: below this the fork and join
+/// cost more than the work, so smaller colours run on one thread.
+pub const CHUNK_CONSTRAINTS: usize = 256;
+
+/// A muscle's colouring, ready to run: colours one after the other; inside a
+/// colour, *units* that share no particle, each a run of constraints solved
+/// Gauss–Seidel in order by one thread; units are grouped into chunks of
+/// about [`CHUNK_CONSTRAINTS`] constraints that threads take whole.
+///
+/// The constructor checks what the parallel sweep relies on: the units of a
+/// colour share no particle and every constraint (but Volume) is in exactly
+/// one unit or in the Jacobi tail. A plan is valid for the constraint counts
+/// and particle count it was built for ([`ColorPlan::fits`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColorPlan {
+    /// Constraints in solve order: colour by colour, unit by unit.
+    refs: Vec<ConstraintRef>,
+    /// `refs[units[u]..units[u + 1]]` is unit `u`.
+    units: Vec<u32>,
+    /// `units` of colour `c`: `colors[c]..colors[c + 1]`.
+    colors: Vec<u32>,
+    /// Chunk boundaries as unit indices; colour `c`'s chunks are
+    /// `chunk_colors[c]..chunk_colors[c + 1]`.
+    chunks: Vec<u32>,
+    chunk_colors: Vec<u32>,
+    /// Hybrid: the constraints solved Jacobi after the colours.
+    tail: Option<JacobiState>,
+    kind: PlanKind,
+    particles: usize,
+    counts: ConstraintCounts,
+}
+
+impl ColorPlan {
+    /// The plan `kind` asks for, over `m`'s constraints in `order`.
+    pub fn build(m: &Muscle, order: &[ConstraintKind], kind: PlanKind) -> Self {
+        match kind {
+            PlanKind::PerConstraint => Self::per_constraint(m, order),
+            PlanKind::Clustered => Self::clustered(m, order),
+            PlanKind::Hybrid { min_group } => Self::hybrid(m, order, min_group as usize),
         }
     }
-}
 
-/// Groups smaller than this are computed on the calling thread: below it the
-/// fork and join cost more than the work.
-pub const PARALLEL_GROUP: usize = 256;
+    /// The thesis' colouring: one constraint per unit (see [`ColorGroups::greedy`]).
+    pub fn per_constraint(m: &Muscle, order: &[ConstraintKind]) -> Self {
+        let groups = ColorGroups::greedy(m, order).groups;
+        let colors = groups
+            .into_iter()
+            .map(|g| g.into_iter().map(|c| vec![c]).collect())
+            .collect();
+        Self::new(m, colors, Vec::new(), PlanKind::PerConstraint)
+    }
+
+    /// Clustered colouring for few sweeps (SPEC §9.3, beyond the thesis):
+    ///
+    /// - a *vertex unit* per particle: its single-particle constraints
+    ///   (Attach, BranchAttach, Hard, Soft, Sliding) in `order`; they share
+    ///   only that particle, so every vertex unit fits in one colour;
+    /// - a *star unit* per internal point: every Internal constraint tying a
+    ///   surface vertex to it (a surface vertex has one internal point, so
+    ///   the stars are disjoint too) — the high-degree internal points no
+    ///   longer need one colour per link;
+    /// - every Branch and Fiber constraint alone (an edge colouring: Branch
+    ///   joins internal points, Fiber surface vertices, so they share colours).
+    ///
+    /// Units are coloured greedily, largest first within each class, in that
+    /// class order.
+    pub fn clustered(m: &Muscle, order: &[ConstraintKind]) -> Self {
+        let surface = m.surface_count as u32;
+        let mut vertex_units: Vec<Vec<ConstraintRef>> = vec![Vec::new(); m.x.len()];
+        let mut stars: Vec<Vec<ConstraintRef>> = vec![Vec::new(); m.x.len()];
+        let mut edges = Vec::new();
+        for c in constraints_in_order(m, order) {
+            match (c.kind, particles_of(m, c)) {
+                (ConstraintKind::Internal, [Some(a), Some(b)]) => {
+                    let center = if a >= surface { a } else { b };
+                    stars[center as usize].push(c);
+                }
+                (_, [Some(p), None]) => vertex_units[p as usize].push(c),
+                _ => edges.push(vec![c]),
+            }
+        }
+        let mut units: Vec<Vec<ConstraintRef>> = Vec::new();
+        units.extend(vertex_units.into_iter().filter(|u| !u.is_empty()));
+        let mut stars: Vec<_> = stars.into_iter().filter(|u| !u.is_empty()).collect();
+        stars.sort_by_key(|u| std::cmp::Reverse(u.len()));
+        units.extend(stars);
+        units.extend(edges);
+        let colors = greedy_units(m, &units)
+            .into_iter()
+            .map(|color| color.into_iter().map(|u| units[u].clone()).collect())
+            .collect();
+        Self::new(m, colors, Vec::new(), PlanKind::Clustered)
+    }
+
+    /// Hybrid (Fratarcangeli & Pellacini 2015): the thesis' per-constraint
+    /// colours with at least `min_group` constraints are solved Gauss–Seidel;
+    /// the constraints of the small, high-degree tail are solved together by
+    /// one Jacobi pass after them.
+    pub fn hybrid(m: &Muscle, order: &[ConstraintKind], min_group: usize) -> Self {
+        let groups = ColorGroups::greedy(m, order).groups;
+        let (big, small): (Vec<_>, Vec<_>) = groups.into_iter().partition(|g| g.len() >= min_group);
+        let colors = big
+            .into_iter()
+            .map(|g| g.into_iter().map(|c| vec![c]).collect())
+            .collect();
+        let tail = small.concat();
+        Self::new(
+            m,
+            colors,
+            tail,
+            PlanKind::Hybrid {
+                min_group: min_group as u32,
+            },
+        )
+    }
+
+    /// Checks and packs a colouring. Panics when a colour's units share a
+    /// particle or a constraint is missing or repeated: that is a bug in the
+    /// builder, and the parallel sweep must never see it.
+    fn new(
+        m: &Muscle,
+        colors: Vec<Vec<Vec<ConstraintRef>>>,
+        tail: Vec<ConstraintRef>,
+        kind: PlanKind,
+    ) -> Self {
+        let counts = m.counts();
+        let particles = m.x.len();
+        let mut seen: Vec<Vec<bool>> = ConstraintKind::CANONICAL_ORDER
+            .iter()
+            .map(|&k| match k {
+                ConstraintKind::Volume => Vec::new(),
+                k => vec![false; counts.get(k)],
+            })
+            .collect();
+        let mut mark = |c: ConstraintRef| {
+            assert!(c.kind != ConstraintKind::Volume, "Volume is solved apart");
+            let slot = &mut seen[c.kind as usize][c.index as usize];
+            assert!(!*slot, "constraint {c:?} planned twice");
+            *slot = true;
+        };
+        // owner[p]: the last unit (global index + 1) that moved p, and its colour.
+        let mut owner: Vec<(u32, u32)> = vec![(0, u32::MAX); particles];
+        let mut plan = Self {
+            refs: Vec::new(),
+            units: vec![0],
+            colors: vec![0],
+            chunks: vec![0],
+            chunk_colors: vec![0],
+            tail: None,
+            kind,
+            particles,
+            counts,
+        };
+        for (ci, color) in colors.into_iter().enumerate() {
+            let mut chunk_size = 0;
+            for unit in color {
+                let u = plan.units.len() as u32;
+                for &c in &unit {
+                    mark(c);
+                    for p in particles_of(m, c).into_iter().flatten() {
+                        let o = &mut owner[p as usize];
+                        assert!(
+                            o.1 != ci as u32 || o.0 == u,
+                            "colour {ci} moves particle {p} from two units"
+                        );
+                        *o = (u, ci as u32);
+                    }
+                    plan.refs.push(c);
+                }
+                chunk_size += unit.len();
+                plan.units.push(plan.refs.len() as u32);
+                if chunk_size >= CHUNK_CONSTRAINTS {
+                    plan.chunks.push(plan.units.len() as u32 - 1);
+                    chunk_size = 0;
+                }
+            }
+            if chunk_size > 0 {
+                plan.chunks.push(plan.units.len() as u32 - 1);
+            }
+            plan.colors.push(plan.units.len() as u32 - 1);
+            plan.chunk_colors.push(plan.chunks.len() as u32 - 1);
+        }
+        for &c in &tail {
+            mark(c);
+        }
+        let missing = seen.iter().position(|kind| kind.contains(&false));
+        assert!(
+            missing.is_none(),
+            "{kind:?}: a constraint of type {missing:?} is not planned"
+        );
+        if !tail.is_empty() {
+            plan.tail = Some(JacobiState::from_parts(m, Vec::new(), tail));
+        }
+        plan
+    }
+
+    /// How the plan was built.
+    pub fn kind(&self) -> PlanKind {
+        self.kind
+    }
+
+    /// Whether the plan still matches `m`'s particles and constraints.
+    pub fn fits(&self, m: &Muscle) -> bool {
+        self.particles == m.x.len() && self.counts == m.counts()
+    }
+
+    /// Number of colours (parallel sweeps per iteration, the Jacobi tail apart).
+    pub fn color_count(&self) -> usize {
+        self.colors.len() - 1
+    }
+
+    /// Constraints per colour, in solve order.
+    pub fn color_sizes(&self) -> Vec<usize> {
+        (0..self.color_count())
+            .map(|c| {
+                let (a, b) = (self.colors[c] as usize, self.colors[c + 1] as usize);
+                (self.units[b] - self.units[a]) as usize
+            })
+            .collect()
+    }
+
+    /// The units of colour `c`, each a run of constraints solved in order.
+    pub fn units_of(&self, c: usize) -> impl Iterator<Item = &[ConstraintRef]> + '_ {
+        (self.colors[c] as usize..self.colors[c + 1] as usize).map(move |u| self.unit(u))
+    }
+
+    /// The constraints of unit `u`, in solve order.
+    pub(super) fn unit(&self, u: usize) -> &[ConstraintRef] {
+        &self.refs[self.units[u] as usize..self.units[u + 1] as usize]
+    }
+
+    /// Number of chunks of colour `c`.
+    pub fn chunk_count(&self, c: usize) -> usize {
+        (self.chunk_colors[c + 1] - self.chunk_colors[c]) as usize
+    }
+
+    /// The units of chunk `k` of colour `c`.
+    pub(super) fn chunk_range(&self, c: usize, k: usize) -> std::ops::Range<usize> {
+        let at = self.chunk_colors[c] as usize + k;
+        self.chunks[at] as usize..self.chunks[at + 1] as usize
+    }
+
+    /// The constraints solved Jacobi after the colours (Hybrid), if any.
+    pub fn tail(&self) -> &[ConstraintRef] {
+        self.tail.as_ref().map_or(&[], |t| &t.jacobi)
+    }
+}
 
 /// Projection of constraint `c` of `m` at the current predictions, not yet
 /// written (Volume has none: it is solved apart).
@@ -173,33 +431,44 @@ pub fn commit(m: &mut Muscle, c: ConstraintRef, correction: &Correction) {
     }
 }
 
-/// One coloured sweep over every constraint of `m` but Volume: the groups
-/// one after the other; inside a group every correction is computed from the
-/// same positions, in parallel when `parallel` and the group is large, then
-/// written. Constraints of a group share no particle, so this is
-/// Gauss–Seidel in group order, and the same for any thread count.
-pub fn project_colored(m: &mut Muscle, state: &mut ColoredState, inv_h2: f32, parallel: bool) {
-    use rayon::prelude::*;
-    for group in &state.groups.groups {
-        if parallel && group.len() >= PARALLEL_GROUP {
-            let slots = &mut state.corrections[..group.len()];
-            let muscle: &Muscle = m;
-            slots
-                .par_iter_mut()
-                .zip(group.par_iter())
-                .for_each(|(slot, &c)| *slot = correction(muscle, c, inv_h2));
-            for (slot, &c) in slots.iter().zip(group) {
-                if let Some(corr) = slot {
-                    commit(m, c, corr);
-                }
-            }
-        } else {
-            for &c in group {
-                if let Some(corr) = correction(m, c, inv_h2) {
-                    commit(m, c, &corr);
-                }
-            }
-        }
+/// One coloured sweep over every constraint of `m` but Volume: the colours
+/// one after the other; inside a colour the units in any order or in
+/// parallel (chunks on the current rayon pool when `parallel`), each unit
+/// Gauss–Seidel in its own order, then the Jacobi tail if the plan has one.
+/// Units of a colour share no particle, so the result is the same for any
+/// thread count. The plan is (re)built when missing, stale or of another kind.
+pub fn project_colored(
+    m: &mut Muscle,
+    order: &[ConstraintKind],
+    kind: PlanKind,
+    inv_h2: f32,
+    omega: f32,
+    parallel: bool,
+) {
+    let mut plan = take_plan(m, order, kind);
+    sweep::sweep_muscle(m, &plan, inv_h2, parallel);
+    project_tail(m, &mut plan, inv_h2, omega, parallel);
+    m.colors = Some(plan);
+}
+
+/// `m`'s plan of `kind`, built if missing or stale, taken out of `m`.
+pub(crate) fn take_plan(m: &mut Muscle, order: &[ConstraintKind], kind: PlanKind) -> ColorPlan {
+    match m.colors.take() {
+        Some(plan) if plan.kind == kind && plan.fits(m) => plan,
+        _ => ColorPlan::build(m, order, kind),
+    }
+}
+
+/// Runs the Jacobi tail of `plan` on `m`, if any.
+pub(crate) fn project_tail(
+    m: &mut Muscle,
+    plan: &mut ColorPlan,
+    inv_h2: f32,
+    omega: f32,
+    parallel: bool,
+) {
+    if let Some(tail) = &mut plan.tail {
+        super::jacobi::project_jacobi(m, tail, inv_h2, omega, parallel);
     }
 }
 

@@ -37,6 +37,15 @@ impl JacobiState {
                     ConstraintKind::Attach | ConstraintKind::BranchAttach
                 )
             });
+        Self::from_parts(m, gauss_seidel, jacobi)
+    }
+
+    /// `gauss_seidel` solved first in order, then `jacobi` averaged.
+    pub fn from_parts(
+        m: &Muscle,
+        gauss_seidel: Vec<ConstraintRef>,
+        jacobi: Vec<ConstraintRef>,
+    ) -> Self {
         let n = m.x.len();
         let mut count = vec![0u32; n + 1];
         for c in &jacobi {

@@ -17,12 +17,13 @@
 //! (`m.target_ids` index it), another driver a slice of references in the
 //! muscle's own target order (`m.target_ids = 0..k`).
 
+use super::coloring::PlanKind;
 use super::momentum::{self, RigidMomentum};
-use super::{SolverMethod, coloring, jacobi};
+use super::{ColorScope, SolverMethod, coloring, jacobi};
 use crate::constraints::{ConstraintBatch, ConstraintKind};
 use crate::muscle::{Muscle, SurfaceAnchor};
 use crate::target::{TargetSet, TargetSource, TargetSurface};
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Vec3, Vec4};
 
 /// Starts a substep: predicts positions (gravity, damping `(1 − d)^damping_exp`),
 /// moves pinned particles to their goals and zeroes the multipliers. Returns
@@ -155,18 +156,22 @@ pub fn closest_data<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T, search: 
             let cell = &mut m.closest[i * nt + slot];
             let warm = cell.map(|h| h.triangle);
             let target = targets.target(m.target_ids[slot]);
-            let lower = target.lower_bound(q);
-            // Inside a bone's box the vertex may be inside the bone: search it
-            // whatever the other targets' distances.
-            let may_be_inside = lower == 0.0 && !target.is_deforming();
+            // The first target searched needs no bound (and no box test).
             let bound = match best {
-                Some((rank, d, _)) if rank >= 0.0 && !may_be_inside => d,
-                Some((rank, _, _)) if rank < 0.0 && !may_be_inside => continue,
-                _ => f32::MAX,
+                None => f32::MAX,
+                Some((rank, d, _)) => {
+                    let lower = target.lower_bound(q);
+                    // Inside a bone's box the vertex may be inside the bone:
+                    // search it whatever the other targets' distances.
+                    let may_be_inside = lower == 0.0 && !target.is_deforming();
+                    match rank >= 0.0 {
+                        _ if may_be_inside => f32::MAX,
+                        true if lower >= d => continue,
+                        true => d,
+                        false => continue,
+                    }
+                }
             };
-            if lower >= bound {
-                continue;
-            }
             let local = warm.filter(|_| !full).and_then(|t| {
                 if search.walk {
                     target.walk(q, t)
@@ -232,22 +237,15 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
     inv_h2: f32,
     parallel: bool,
 ) {
-    let (body, volume_last) = match order.split_last() {
-        Some((ConstraintKind::Volume, rest)) => (rest, true),
-        _ => (order, false),
-    };
     match method {
-        SolverMethod::Sequential => project(m, body, inv_h2),
-        SolverMethod::Colored { .. } => {
-            let mut state = m
-                .colors
-                .take()
-                .unwrap_or_else(|| coloring::ColoredState::new(m, order));
-            coloring::project_colored(m, &mut state, inv_h2, parallel);
-            m.colors = Some(state);
-            if !volume_last && order.contains(&ConstraintKind::Volume) {
-                project(m, &[ConstraintKind::Volume], inv_h2);
-            }
+        SolverMethod::Sequential => {
+            let (body, _) = split_volume(order);
+            project(m, body, inv_h2);
+        }
+        SolverMethod::Colored { .. } | SolverMethod::Hybrid { .. } => {
+            let (kind, omega) = plan_kind(method).expect("a coloured method");
+            coloring::project_colored(m, order, kind, inv_h2, omega, parallel);
+            volume_within(m, order, inv_h2);
         }
         SolverMethod::Jacobi { omega } => {
             let mut state = m
@@ -256,22 +254,64 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
                 .unwrap_or_else(|| jacobi::JacobiState::new(m, order));
             jacobi::project_jacobi(m, &mut state, inv_h2, omega, parallel);
             m.jacobi = Some(state);
-            if !volume_last && order.contains(&ConstraintKind::Volume) {
-                project(m, &[ConstraintKind::Volume], inv_h2);
-            }
+            volume_within(m, order, inv_h2);
         }
     }
+    finish_iteration(m, order, targets, inv_h2);
+}
+
+/// The colour plan a method runs on and its Jacobi ω (1 without a tail);
+/// `None` for the uncoloured methods.
+pub fn plan_kind(method: SolverMethod) -> Option<(PlanKind, f32)> {
+    match method {
+        SolverMethod::Colored {
+            scope: ColorScope::PerMuscle,
+        } => Some((PlanKind::PerConstraint, 1.0)),
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        } => Some((PlanKind::Clustered, 1.0)),
+        SolverMethod::Hybrid { min_group, omega } => Some((PlanKind::Hybrid { min_group }, omega)),
+        SolverMethod::Sequential | SolverMethod::Jacobi { .. } => None,
+    }
+}
+
+/// `order` without a trailing Volume, and whether it had one.
+fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
+    match order.split_last() {
+        Some((ConstraintKind::Volume, rest)) => (rest, true),
+        _ => (order, false),
+    }
+}
+
+/// After a coloured or Jacobi sweep (which leave Volume out): the Volume,
+/// when `order` has it anywhere but last.
+pub(super) fn volume_within(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
+    if !split_volume(order).1 && order.contains(&ConstraintKind::Volume) {
+        project(m, &[ConstraintKind::Volume], inv_h2);
+    }
+}
+
+/// The end of an iteration's projection: the bone contacts, then the Volume
+/// when `order` ends with it.
+pub fn finish_iteration<T: TargetSet + ?Sized>(
+    m: &mut Muscle,
+    order: &[ConstraintKind],
+    targets: &T,
+    inv_h2: f32,
+) {
     bone_contacts(m, targets);
-    if volume_last {
+    if split_volume(order).1 {
         project(m, &[ConstraintKind::Volume], inv_h2);
     }
 }
 
 /// In each iteration, after the projections (before a trailing Volume), puts
-/// every surface vertex that ended up inside one of its muscle's bone targets (and was outside it at rest)
-/// back on the bone's surface: bones do not give way, whatever the soft
-/// constraints solved after Sliding did. Each bone is checked only for
-/// vertices inside its bounding box, from the last closest triangle (a walk).
+/// every surface vertex that ended up inside one of its muscle's bone targets
+/// (and was outside it at rest) back on the bone's surface: bones do not give
+/// way, whatever the soft constraints solved after Sliding did. Each bone is
+/// checked only for vertices inside its bounding box, from the last closest
+/// triangle (a walk), and not at all while the vertex stays within its last
+/// known clearance of where it had it ([`Muscle::clearance`]).
 pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
     let nt = m.target_ids.len();
     let c = &m.constraints.sliding;
@@ -284,20 +324,34 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
             continue;
         }
         for slot in (0..nt).filter(|&s| c.rigid[s]) {
-            let target = targets.target(m.target_ids[slot]);
-            let q = m.p[v];
-            if !c.rest_outside[i * nt + slot] || target.lower_bound(q) > 0.0 {
+            let cell = i * nt + slot;
+            if !c.rest_outside[cell] {
                 continue;
             }
-            let cell = &mut m.closest[i * nt + slot];
-            let hit = match cell.map(|h| h.triangle) {
+            let target = targets.target(m.target_ids[slot]);
+            let local = target.to_local(m.p[v]);
+            let known = m.clearance[cell];
+            if local.distance_squared(known.truncate()) < known.w * known.w {
+                continue;
+            }
+            let lower = target.lower_bound_local(local);
+            if lower > 0.0 {
+                m.clearance[cell] = local.extend(lower);
+                continue;
+            }
+            let closest = &mut m.closest[cell];
+            let q = m.p[v];
+            let hit = match closest.map(|h| h.triangle) {
                 Some(t) => target.walk(q, t),
                 None => target.closest_within(q, None, f32::INFINITY),
             };
             if let Some(hit) = hit {
-                *cell = Some(hit);
+                *closest = Some(hit);
                 if hit.signed_distance < 0.0 {
                     m.p[v] -= hit.normal * hit.signed_distance;
+                    m.clearance[cell] = Vec4::ZERO;
+                } else {
+                    m.clearance[cell] = local.extend(hit.distance);
                 }
             }
         }
@@ -340,6 +394,7 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
     m.colors = None;
     m.jacobi = None;
     m.closest = vec![None; n * nt];
+    m.clearance = vec![Vec4::ZERO; n * nt];
     if nt == 0 {
         return;
     }

@@ -377,32 +377,100 @@ fn colored_is_bit_identical_for_1_2_and_8_threads() {
     assert_ne!(one, positions_with_threads("P3", 1, 30));
 }
 
+/// Every constraint of every plan kind's colouring is solved exactly once per
+/// iteration (in a unit or in the Jacobi tail), and the units of a colour
+/// share no particle: checked here from scratch, not by the plan's own
+/// constructor.
 #[test]
-fn colored_groups_cover_every_constraint_once() {
-    let solver = builtin("P3")
+fn every_plan_solves_each_constraint_once_and_no_colour_shares_a_particle() {
+    let mut solver = builtin("P3")
         .unwrap()
         .instantiate(std::path::Path::new("."))
         .unwrap();
+    // Link the target constraints (Sliding, Soft, Hard) first.
+    solver.prepare();
+    let kinds = [
+        coloring::PlanKind::PerConstraint,
+        coloring::PlanKind::Clustered,
+        coloring::PlanKind::Hybrid { min_group: 32 },
+    ];
     for m in solver.muscles() {
-        let state = coloring::ColoredState::new(m, &ConstraintKind::CANONICAL_ORDER);
-        let mut seen: Vec<_> = state.groups.groups.iter().flatten().copied().collect();
-        let total = seen.len();
-        seen.sort_by_key(|c| (c.kind as usize, c.index));
-        seen.dedup();
-        assert_eq!(
-            seen.len(),
-            total,
-            "{}: a constraint is in two groups",
-            m.name
-        );
-        let counts = m.counts();
-        let expected = counts.total() - counts.get(ConstraintKind::Volume);
-        assert_eq!(
-            total, expected,
-            "{}: every constraint but Volume once",
-            m.name
+        for kind in kinds {
+            let plan = coloring::ColorPlan::build(m, &ConstraintKind::CANONICAL_ORDER, kind);
+            let mut solved = std::collections::HashMap::new();
+            for c in 0..plan.color_count() {
+                let mut owner = std::collections::HashMap::new();
+                for (u, unit) in plan.units_of(c).enumerate() {
+                    for &r in unit {
+                        *solved.entry(r).or_insert(0) += 1;
+                        for p in coloring::particles_of(m, r).into_iter().flatten() {
+                            let first = *owner.entry(p).or_insert(u);
+                            assert_eq!(first, u, "{kind:?} colour {c}: particle {p} in two units");
+                        }
+                    }
+                }
+            }
+            for &r in plan.tail() {
+                *solved.entry(r).or_insert(0) += 1;
+            }
+            let counts = m.counts();
+            let expected = counts.total() - counts.get(ConstraintKind::Volume);
+            assert_eq!(
+                solved.len(),
+                expected,
+                "{kind:?}: every constraint but Volume"
+            );
+            assert!(solved.values().all(|&n| n == 1), "{kind:?}: once each");
+        }
+    }
+}
+
+#[test]
+fn global_colouring_and_hybrid_are_bit_identical_for_1_2_and_8_threads() {
+    let methods = [
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        },
+        SolverMethod::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
+    ];
+    for method in methods {
+        let one = positions("P3", method, 1, 30);
+        assert_eq!(one, positions("P3", method, 2, 30), "{method:?}: 2 threads");
+        assert_eq!(one, positions("P3", method, 8, 30), "{method:?}: 8 threads");
+        assert!(one.iter().all(|&b| f32::from_bits(b).is_finite()));
+        assert_ne!(one, colored(1, "P3", 30), "{method:?} is its own order");
+    }
+}
+
+#[test]
+fn global_colouring_and_hybrid_contract_t1_like_sequential() {
+    let reference = t1_length(SolverMethod::Sequential, 45);
+    for method in [
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        },
+        SolverMethod::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
+    ] {
+        let length = t1_length(method, 45);
+        assert!(
+            (length - reference).abs() / reference < 0.05,
+            "{method:?}: {length} vs {reference}"
         );
     }
+    let settings = SolverSettings {
+        method: SolverMethod::Hybrid {
+            min_group: 0,
+            omega: 1.5,
+        },
+        ..Default::default()
+    };
+    assert!(Solver::new(settings).is_err());
 }
 
 /// The T1 oval's length along its fibres after `frames` frames with `method`.

@@ -246,7 +246,7 @@ impl TargetSurface {
 
     /// A world point in the target's local frame.
     #[inline]
-    fn to_local(&self, query: Vec3) -> Vec3 {
+    pub fn to_local(&self, query: Vec3) -> Vec3 {
         if self.identity {
             query
         } else {
@@ -396,6 +396,11 @@ impl TargetSurface {
     pub fn lower_bound(&self, query: Vec3) -> f32 {
         let q = self.to_local(query);
         self.bvh.lower_bound(q, self.slack)
+    }
+
+    /// [`TargetSurface::lower_bound`] for a point already in the local frame.
+    pub fn lower_bound_local(&self, local: Vec3) -> f32 {
+        self.bvh.lower_bound(local, self.slack)
     }
 
     /// Closest point to `query` on triangle `t` only, or `None` when `t` is
