@@ -7,7 +7,8 @@ use std::error::Error;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// Median (mean of the middle two for an even count; 0 when empty).
+pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {
@@ -42,20 +43,30 @@ struct RunResult {
 pub enum Method {
     /// Gauss–Seidel, the reference.
     Sequential,
-    /// Per-muscle colour groups, each group in parallel.
+    /// Per-muscle colour groups, one constraint at a time (the thesis).
     Colored,
+    /// Clustered colouring, colour by colour across every muscle.
+    ColoredGlobal,
     /// Jacobi averaging with over-relaxation `--omega`.
     Jacobi,
+    /// Colour groups of at least `--min-group` constraints Gauss–Seidel, the
+    /// rest Jacobi with `--omega`.
+    Hybrid,
 }
 
 impl Method {
-    fn solver_method(self, omega: f32) -> SolverMethod {
+    /// The solver method this names, with the given parameters.
+    pub fn solver_method(self, omega: f32, min_group: u32) -> SolverMethod {
         match self {
             Method::Sequential => SolverMethod::Sequential,
             Method::Colored => SolverMethod::Colored {
                 scope: ColorScope::PerMuscle,
             },
+            Method::ColoredGlobal => SolverMethod::Colored {
+                scope: ColorScope::Global,
+            },
             Method::Jacobi => SolverMethod::Jacobi { omega },
+            Method::Hybrid => SolverMethod::Hybrid { min_group, omega },
         }
     }
 }
@@ -75,6 +86,9 @@ pub struct Overrides {
     /// Jacobi over-relaxation ω in [1, 2].
     #[arg(long, default_value_t = 1.5)]
     pub omega: f32,
+    /// Hybrid: smallest colour group solved Gauss–Seidel.
+    #[arg(long, default_value_t = 32)]
+    pub min_group: u32,
 }
 
 impl Overrides {
@@ -87,9 +101,25 @@ impl Overrides {
             solver.settings.threads = t;
         }
         if let Some(m) = self.method {
-            solver.settings.method = m.solver_method(self.omega);
+            solver.settings.method = m.solver_method(self.omega, self.min_group);
         }
     }
+}
+
+/// Steps `frames` frames: per-block ms/frame and wall ms/frame.
+pub fn time_frames(solver: &mut Solver, frames: u32) -> ([f64; 7], f64) {
+    let frames = frames.max(1);
+    let mut blocks = [Duration::ZERO; 7];
+    let start = Instant::now();
+    for _ in 0..frames {
+        solver.step();
+        let t: &StepTimings = solver.timings();
+        for (b, d) in blocks.iter_mut().zip(t.as_array()) {
+            *b += d;
+        }
+    }
+    let wall = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+    (blocks.map(|d| d.as_secs_f64() * 1e3 / frames as f64), wall)
 }
 
 /// One run: per-block ms/frame and wall ms/frame.
@@ -104,17 +134,7 @@ fn run_once(
     solver.settings.timers = timers;
     // Warm-up frame links targets and faults pages in.
     solver.step();
-    let mut blocks = [Duration::ZERO; 7];
-    let start = Instant::now();
-    for _ in 0..frames {
-        solver.step();
-        let t: &StepTimings = solver.timings();
-        for (b, d) in blocks.iter_mut().zip(t.as_array()) {
-            *b += d;
-        }
-    }
-    let wall = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
-    let per_frame = blocks.map(|d| d.as_secs_f64() * 1e3 / frames as f64);
+    let (per_frame, wall) = time_frames(&mut solver, frames);
     let constraints = solver.muscles().iter().map(|m| m.counts().total()).sum();
     Ok(RunResult {
         blocks: per_frame,
@@ -144,7 +164,7 @@ fn clock_read_ns() -> f64 {
 
 /// A bare XPBD distance loop over `n` constraints on a chain: the practical
 /// lower bound per constraint-iteration on this machine. Returns ns.
-fn bare_kernel_ns(n: usize, iterations: usize) -> f64 {
+pub fn bare_kernel_ns(n: usize, iterations: usize) -> f64 {
     let particles = n + 1;
     let mut p: Vec<Vec3> = (0..particles)
         .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
@@ -247,6 +267,6 @@ pub fn run(
 }
 
 /// Cores the "every core" setting uses.
-fn rayon_cores() -> usize {
+pub fn rayon_cores() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }

@@ -3,7 +3,7 @@
 use sinew_core::constraints::{ConstraintCounts, ConstraintKind};
 use sinew_core::mesh::{LoadOptions, append_obj, load_mesh};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
-use sinew_core::solver::coloring::ColorGroups;
+use sinew_core::solver::coloring::{ColorGroups, ColorPlan, PlanKind};
 use sinew_core::{SceneError, Solver};
 use std::error::Error;
 use std::fmt::Write as _;
@@ -117,26 +117,34 @@ pub fn info(arg: &str) -> Result<ExitCode> {
     )?;
     writeln!(
         out,
-        "\nColour groups (greedy first-fit per muscle in projection order; Volume apart):"
+        "\nColour groups (Volume apart): the thesis' greedy first-fit per constraint \
+         (sizes shown), the clustered colouring of the global scope, and Hybrid's \
+         Gauss–Seidel groups (≥ 32) with its Jacobi tail:"
     )?;
     writeln!(
         out,
-        "{:<12}{:>8}{:>9}{:>9}{:>8}  sizes",
-        "muscle", "groups", "largest", "smallest", "size 1"
+        "{:<12}{:>8}{:>9}{:>9}{:>8}{:>11}{:>8}{:>6}  sizes",
+        "muscle", "groups", "largest", "smallest", "size 1", "clustered", "hybrid", "tail"
     )?;
+    let order = &solver.settings.projection_order;
     for m in solver.muscles() {
-        let colors = ColorGroups::greedy(m, &solver.settings.projection_order);
+        let colors = ColorGroups::greedy(m, order);
+        let clustered = ColorPlan::build(m, order, PlanKind::Clustered);
+        let hybrid = ColorPlan::build(m, order, PlanKind::Hybrid { min_group: 32 });
         let sizes = colors.sizes();
         let shown: Vec<String> = sizes.iter().take(16).map(usize::to_string).collect();
         let more = if sizes.len() > 16 { " …" } else { "" };
         writeln!(
             out,
-            "{:<12}{:>8}{:>9}{:>9}{:>8}  {}{more}",
+            "{:<12}{:>8}{:>9}{:>9}{:>8}{:>11}{:>8}{:>6}  {}{more}",
             truncate(&m.name, 11),
             colors.len(),
             sizes.iter().max().unwrap_or(&0),
             sizes.iter().min().unwrap_or(&0),
             sizes.iter().filter(|&&n| n == 1).count(),
+            clustered.color_count(),
+            hybrid.color_count(),
+            hybrid.tail().len(),
             shown.join(" ")
         )?;
     }

@@ -5,6 +5,7 @@ mod check;
 mod commands;
 mod import;
 mod render;
+mod suite;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -58,6 +59,9 @@ enum Command {
         #[arg(long)]
         timer_overhead: bool,
     },
+    /// The benchmark suite: P1–P4 and T7, every method, 1 to all threads,
+    /// next to the thesis' tables; writes suite.json and PNG plots.
+    Suite(suite::SuiteArgs),
     /// Import a MuJoCo MJCF model (or run an import recipe `.ron`): bones,
     /// joints and one swept muscle per tendon actuator, as a scene.
     ImportMjcf {
@@ -148,6 +152,7 @@ fn main() -> ExitCode {
             overrides,
         } => check::run(&scene, frames, every, depth_mm, overrides),
         Command::ImportMjcf { input, args } => import::run(&input, &args),
+        Command::Suite(args) => suite::run(&args),
     };
     match result {
         Ok(code) => code,
