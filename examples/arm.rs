@@ -30,7 +30,7 @@ fn main() {
             ..default()
         })
         .add_systems(Startup, setup)
-        .add_systems(Update, (orbit_camera, screenshot))
+        .add_systems(Update, (frame_the_muscles, orbit_camera, screenshot))
         .run();
 }
 
@@ -53,8 +53,9 @@ impl Orbit {
 
 fn setup(mut commands: Commands, assets: Res<AssetServer>) {
     commands.spawn(SinewSceneRoot::Asset(assets.load("scenes/t5.ron")));
+    // Aimed at the muscles once they are built (`frame_the_muscles`).
     let orbit = Orbit {
-        focus: Vec3::new(-0.2, 0.05, -0.2),
+        focus: Vec3::ZERO,
         yaw: -2.2,
         pitch: -0.1,
         distance: 1.0,
@@ -74,6 +75,32 @@ fn setup(mut commands: Commands, assets: Res<AssetServer>) {
         },
         Transform::from_xyz(1.0, 0.5, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
+}
+
+/// Once the muscles are built, points the camera at their bounding box and
+/// backs off until the whole of it is in view.
+fn frame_the_muscles(
+    muscles: Query<&MuscleState>,
+    mut cameras: Query<&mut Orbit>,
+    mut framed: Local<bool>,
+) {
+    if *framed || muscles.is_empty() {
+        return;
+    }
+    let (lo, hi) = muscles.iter().flat_map(|m| m.muscle.x.iter()).fold(
+        (Vec3::MAX, Vec3::MIN),
+        |(lo, hi), &p| {
+            let p = Vec3::from(p.to_array());
+            (lo.min(p), hi.max(p))
+        },
+    );
+    for mut orbit in &mut cameras {
+        orbit.focus = (lo + hi) * 0.5;
+        // The default 45° vertical field of view sees 0.83 × the distance;
+        // leave a margin around the box's diagonal.
+        orbit.distance = (hi - lo).length() * 1.25;
+    }
+    *framed = true;
 }
 
 fn orbit_camera(

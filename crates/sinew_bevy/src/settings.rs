@@ -166,6 +166,8 @@ impl SinewSettings {
             full_search_interval: self.full_search_interval,
             walk_every_iteration: self.walk_every_iteration,
             threads: self.threads,
+            // The systems split by muscle (`par_iter`); same bits either way.
+            schedule: sinew_core::SweepSchedule::ByMuscle,
         }
     }
 }

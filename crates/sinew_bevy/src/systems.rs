@@ -481,6 +481,7 @@ pub(crate) fn closest_data(
         active: full,
         walk: full || s.walk_every_iteration,
         substep_start: ctx.iteration == 0,
+        parallel: s.threads != 1,
     };
     let (it, global) = (ctx.iteration, s.iterations);
     each_muscle!(muscles, s.threads, |(mut state, targets): (

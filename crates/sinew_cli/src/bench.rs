@@ -2,7 +2,7 @@
 
 use crate::commands::load_solver;
 use sinew_core::glam::Vec3;
-use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings};
+use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings, SweepSchedule};
 use std::error::Error;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -89,6 +89,20 @@ pub struct Overrides {
     /// Hybrid: smallest colour group solved Gauss–Seidel.
     #[arg(long, default_value_t = 32)]
     pub min_group: u32,
+    /// How coloured methods use the threads (default: the scene's, `auto`).
+    #[arg(long, value_enum)]
+    pub schedule: Option<Schedule>,
+}
+
+/// [`SweepSchedule`] on the command line.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum Schedule {
+    /// By colour when splitting by muscle would leave threads idle.
+    Auto,
+    /// Whole muscles per thread.
+    ByMuscle,
+    /// Colour by colour across muscles.
+    ByColor,
 }
 
 impl Overrides {
@@ -102,6 +116,13 @@ impl Overrides {
         }
         if let Some(m) = self.method {
             solver.settings.method = m.solver_method(self.omega, self.min_group);
+        }
+        if let Some(s) = self.schedule {
+            solver.settings.schedule = match s {
+                Schedule::Auto => SweepSchedule::Auto,
+                Schedule::ByMuscle => SweepSchedule::ByMuscle,
+                Schedule::ByColor => SweepSchedule::ByColor,
+            };
         }
     }
 }

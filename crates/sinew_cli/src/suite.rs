@@ -103,6 +103,18 @@ struct Report {
     scenes: Vec<SceneReport>,
 }
 
+impl Report {
+    /// The most threads any result used.
+    fn max_threads(&self) -> u32 {
+        self.scenes
+            .iter()
+            .flat_map(|s| &s.results)
+            .map(|r| r.threads)
+            .max()
+            .unwrap_or(1)
+    }
+}
+
 #[derive(Serialize)]
 struct Machine {
     cores: usize,
@@ -536,13 +548,41 @@ fn plot_blocks(s: &SceneReport, path: &Path) -> Result<(), Box<dyn Error>> {
             .label(*name)
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
     }
+    legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    root.present()?;
+    Ok(())
+}
+
+/// The series legend in a framed box.
+fn legend<'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'a>, CT>,
+    position: SeriesLabelPosition,
+) -> Result<(), Box<dyn Error>> {
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(position)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()?;
-    root.present()?;
+    Ok(())
+}
+
+/// A labelled polyline with a dot at each point.
+fn line_with_points<'a, CT: CoordTranslate<From = (f64, f64)>>(
+    chart: &mut ChartContext<'a, BitMapBackend<'a>, CT>,
+    points: Vec<(f64, f64)>,
+    color: RGBColor,
+    label: impl Into<String>,
+) -> Result<(), Box<dyn Error>> {
+    chart
+        .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+    chart.draw_series(
+        points
+            .into_iter()
+            .map(|p| Circle::new(p, 4, color.filled())),
+    )?;
     Ok(())
 }
 
@@ -562,13 +602,7 @@ fn methods_of(report: &Report) -> Vec<String> {
 fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
     let root = BitMapBackend::new(path, (1100, 750)).into_drawing_area();
     root.fill(&WHITE)?;
-    let max_threads = report
-        .scenes
-        .iter()
-        .flat_map(|s| &s.results)
-        .map(|r| r.threads)
-        .max()
-        .unwrap_or(1);
+    let max_threads = report.max_threads();
     let (mut lo_x, mut hi_x) = (f64::MAX, 1.0f64);
     let (mut lo_y, mut hi_y) = (f64::MAX, 1e-3f64);
     for s in &report.scenes {
@@ -613,17 +647,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
                     .map(|r| (s.constraints as f64, r.wall_ms))
             })
             .collect();
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
-            .label(method.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        chart.draw_series(
-            points
-                .into_iter()
-                .map(|p| Circle::new(p, 4, color.filled())),
-        )?;
+        line_with_points(&mut chart, points, color, method.as_str())?;
     }
     for (k, name) in THESIS_METHODS.iter().enumerate() {
         let points: Vec<(f64, f64)> = report
@@ -642,12 +666,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
             .label(format!("thesis {name}"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present()?;
     Ok(())
 }
@@ -657,13 +676,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
 fn plot_speedup(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
     let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
     root.fill(&WHITE)?;
-    let max_threads = report
-        .scenes
-        .iter()
-        .flat_map(|s| &s.results)
-        .map(|r| r.threads)
-        .max()
-        .unwrap_or(1) as f64;
+    let max_threads = report.max_threads() as f64;
     let mut series = Vec::new();
     for s in &report.scenes {
         let best = s
@@ -703,24 +716,9 @@ fn plot_speedup(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
     ))?;
     for (i, (label, points)) in series.into_iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
-            .label(label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        chart.draw_series(
-            points
-                .into_iter()
-                .map(|p| Circle::new(p, 4, color.filled())),
-        )?;
+        line_with_points(&mut chart, points, color, label)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present()?;
     Ok(())
 }

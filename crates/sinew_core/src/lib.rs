@@ -56,4 +56,5 @@ pub use error::{BuildError, ImportError, MeshError, SceneError};
 pub use glam;
 pub use solver::{
     ColorScope, RigidMomentum, Solver, SolverMethod, SolverParts, SolverSettings, StepTimings,
+    SweepSchedule,
 };

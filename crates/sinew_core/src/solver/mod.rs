@@ -101,6 +101,22 @@ pub enum ColorScope {
     Global,
 }
 
+/// How the solver spreads a coloured method's sweeps over its threads. Both
+/// give the same bits; only the speed differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SweepSchedule {
+    /// Colour by colour across muscles when splitting by muscle would leave
+    /// threads idle (one muscle much larger than its share), else by muscle.
+    #[default]
+    Auto,
+    /// Each thread takes whole muscles: one synchronisation per iteration.
+    ByMuscle,
+    /// Colour `c` of every muscle in one parallel sweep of (muscle, chunk)
+    /// tasks: balanced, one synchronisation per colour. Only for
+    /// `Colored { scope: Global }` and `Hybrid`.
+    ByColor,
+}
+
 /// Global solver settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -140,6 +156,8 @@ pub struct SolverSettings {
     /// other only through published snapshots, so the result is bit-identical
     /// for any count. Default: `1`.
     pub threads: u32,
+    /// How coloured methods use the threads. Default: [`SweepSchedule::Auto`].
+    pub schedule: SweepSchedule,
 }
 
 impl Default for SolverSettings {
@@ -157,6 +175,7 @@ impl Default for SolverSettings {
             full_search_interval: 16,
             walk_every_iteration: false,
             threads: 1,
+            schedule: SweepSchedule::Auto,
         }
     }
 }
@@ -753,6 +772,7 @@ impl Solver {
                     active: full_searches,
                     walk: full_searches || self.settings.walk_every_iteration,
                     substep_start: it == 0,
+                    parallel: self.pool.is_some(),
                 };
                 let targets = self.targets.as_slice();
                 let order = &self.settings.projection_order;
@@ -770,11 +790,17 @@ impl Solver {
                 });
                 clock.lap(&mut timings.closest_data);
                 match (stage::plan_kind(method), &self.pool) {
-                    // Global colouring and Hybrid on threads: colour c of
-                    // every muscle in one parallel sweep (same bits as the
+                    // Global colouring and Hybrid on threads, when splitting
+                    // by muscle would leave threads idle: colour c of every
+                    // muscle in one parallel sweep (same bits as the
                     // muscle-by-muscle run below).
-                    (Some((kind, omega)), Some((_, pool)))
-                        if kind != coloring::PlanKind::PerConstraint =>
+                    (Some((kind, omega)), Some((n, pool)))
+                        if kind != coloring::PlanKind::PerConstraint
+                            && match self.settings.schedule {
+                                SweepSchedule::Auto => global_sweeps_pay(&self.muscles, *n),
+                                SweepSchedule::ByMuscle => false,
+                                SweepSchedule::ByColor => true,
+                            } =>
                     {
                         let muscles = &mut self.muscles;
                         let mut plans: Vec<Option<coloring::ColorPlan>> = muscles
@@ -816,6 +842,31 @@ impl Solver {
         timings.clock_reads = clock.reads();
         self.timings = timings;
     }
+}
+
+/// Constraints one sweep's synchronisation costs as much as (about 10 µs of
+/// fork and join on the 2-core development machine against about 50 ns per
+/// constraint; `sinew suite` measures both).
+const SWEEP_SYNC_CONSTRAINTS: usize = 200;
+
+/// Whether colour-by-colour sweeps across muscles beat splitting by muscle
+/// on `threads` threads: the split by muscle cannot finish before its largest
+/// muscle, the sweeps pay a synchronisation per colour. The two give the
+/// same bits, so this only picks the faster schedule.
+fn global_sweeps_pay(muscles: &[Muscle], threads: u32) -> bool {
+    let threads = if threads == 0 {
+        rayon::current_num_threads()
+    } else {
+        threads as usize
+    };
+    let sizes = muscles.iter().map(|m| m.counts().total());
+    let (total, largest) = sizes.fold((0, 0), |(t, l), n| (t + n, l.max(n)));
+    let sweeps = muscles
+        .iter()
+        .filter_map(|m| m.colors.as_ref().map(coloring::ColorPlan::color_count))
+        .max()
+        .unwrap_or(16);
+    largest > total / threads.max(1) + SWEEP_SYNC_CONSTRAINTS * sweeps
 }
 
 /// Runs `f` on every muscle, on the pool's threads when there is one.

@@ -108,6 +108,8 @@ pub struct ClosestSchedule {
     pub walk: bool,
     /// The first iteration of a substep: bones have just been posed.
     pub substep_start: bool,
+    /// Split the vertices over the current rayon pool (same result).
+    pub parallel: bool,
 }
 
 impl ClosestSchedule {
@@ -119,6 +121,7 @@ impl ClosestSchedule {
         active: true,
         walk: true,
         substep_start: true,
+        parallel: false,
     };
 
     fn wants(&self, vertex: usize) -> bool {
@@ -126,87 +129,51 @@ impl ClosestSchedule {
     }
 }
 
+/// Sliding constraints per parallel chunk of the closest-data block.
+pub const CLOSEST_CHUNK: usize = 128;
+
 /// Closest data (BE5): Sliding's closest point on the closest target per
 /// vertex, and the current goals of Soft and Hard on their rest triangles.
-pub fn closest_data<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T, search: ClosestSchedule) {
+/// With `search.parallel` the vertices are split over the current rayon pool
+/// in chunks of [`CLOSEST_CHUNK`] (each vertex writes only its own data, so
+/// the result is the same).
+pub fn closest_data<T: TargetSet + Sync + ?Sized>(
+    m: &mut Muscle,
+    targets: &T,
+    search: ClosestSchedule,
+) {
+    use rayon::prelude::*;
     let nt = m.target_ids.len();
     if nt == 0 {
         return;
     }
     let c = &mut m.constraints;
-    for i in 0..c.sliding.len() {
-        let v = c.sliding.particle[i] as usize;
-        let q = m.p[v];
-        // (rank, distance, slot): the rank is the distance, except that a
-        // vertex inside a rigid target (a bone) ranks it first, so Sliding
-        // pushes it out of the bone even when a neighbouring muscle is nearer.
-        let mut best: Option<(f32, f32, u32)> = None;
-        // Last iteration's target first; every other search is bounded by the
-        // best distance so far (Sliding only needs the closest target). The
-        // closest target is re-chosen in the first iteration of a frame; later
-        // iterations follow the chosen one only.
-        let first = c.sliding.target[i] as usize;
-        let choose = search.active || first >= nt;
-        let order = (first < nt)
-            .then_some(first)
-            .into_iter()
-            .chain((0..nt).filter(move |&s| choose && s != first));
-        let full = search.wants(v);
-        for slot in order {
-            let cell = &mut m.closest[i * nt + slot];
-            let warm = cell.map(|h| h.triangle);
-            let target = targets.target(m.target_ids[slot]);
-            // The first target searched needs no bound (and no box test).
-            let bound = match best {
-                None => f32::MAX,
-                Some((rank, d, _)) => {
-                    let lower = target.lower_bound(q);
-                    // Inside a bone's box the vertex may be inside the bone:
-                    // search it whatever the other targets' distances.
-                    let may_be_inside = lower == 0.0 && !target.is_deforming();
-                    match rank >= 0.0 {
-                        _ if may_be_inside => f32::MAX,
-                        true if lower >= d => continue,
-                        true => d,
-                        false => continue,
-                    }
-                }
-            };
-            let local = warm.filter(|_| !full).and_then(|t| {
-                if search.walk {
-                    target.walk(q, t)
-                } else {
-                    target.on_triangle(q, t)
-                }
+    let input = SlidingInput {
+        p: &m.p,
+        target_ids: &m.target_ids,
+        targets,
+        search,
+    };
+    let s = &mut c.sliding;
+    if search.parallel && s.len() > CLOSEST_CHUNK {
+        let k = CLOSEST_CHUNK;
+        s.particle
+            .par_chunks(k)
+            .zip(s.point.par_chunks_mut(k))
+            .zip(s.normal.par_chunks_mut(k))
+            .zip(s.target.par_chunks_mut(k))
+            .zip(m.closest.par_chunks_mut(k * nt))
+            .for_each(|((((particle, point), normal), target), closest)| {
+                input.closest(particle, point, normal, target, closest);
             });
-            let hit = match local {
-                Some(hit) => Some(hit),
-                None => target.closest_within(q, warm, bound),
-            };
-            if hit.is_some() {
-                *cell = hit;
-            }
-            if let Some(hit) = hit {
-                let inside_bone = hit.signed_distance < 0.0 && !target.is_deforming();
-                let rank = if inside_bone {
-                    -hit.distance - 1.0
-                } else {
-                    hit.distance
-                };
-                if best.is_none_or(|(r, _, _)| rank < r) {
-                    best = Some((rank, hit.distance, slot as u32));
-                }
-            }
-        }
-        match best {
-            Some((_, _, slot)) => {
-                let hit = m.closest[i * nt + slot as usize].expect("chosen hit");
-                c.sliding.point[i] = hit.point;
-                c.sliding.normal[i] = hit.normal;
-                c.sliding.target[i] = slot;
-            }
-            None => c.sliding.target[i] = u32::MAX,
-        }
+    } else {
+        input.closest(
+            &s.particle,
+            &mut s.point,
+            &mut s.normal,
+            &mut s.target,
+            &mut m.closest,
+        );
     }
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
@@ -222,6 +189,104 @@ pub fn closest_data<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T, search: 
         let t = targets.target(m.target_ids[a.target as usize]);
         if c.hard.compliance[i].is_finite() && moved(t) {
             c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+        }
+    }
+}
+
+/// What the Sliding part of closest data reads.
+struct SlidingInput<'a, T: ?Sized> {
+    p: &'a [Vec3],
+    target_ids: &'a [usize],
+    targets: &'a T,
+    search: ClosestSchedule,
+}
+
+impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
+    /// Closest points for a run of Sliding constraints: `particle`, `point`,
+    /// `normal` and `target` are that run's slices of the batch, `closest`
+    /// its cells (`targets` per constraint).
+    fn closest(
+        &self,
+        particle: &[u32],
+        point: &mut [Vec3],
+        normal: &mut [Vec3],
+        target: &mut [u32],
+        closest: &mut [Option<crate::target::ClosestHit>],
+    ) {
+        let (nt, search) = (self.target_ids.len(), self.search);
+        for i in 0..particle.len() {
+            let v = particle[i] as usize;
+            let q = self.p[v];
+            // (rank, distance, slot): the rank is the distance, except that a
+            // vertex inside a rigid target (a bone) ranks it first, so Sliding
+            // pushes it out of the bone even when a neighbouring muscle is nearer.
+            let mut best: Option<(f32, f32, u32)> = None;
+            // Last iteration's target first; every other search is bounded by
+            // the best distance so far (Sliding only needs the closest
+            // target). The closest target is re-chosen in the first iteration
+            // of a frame; later iterations follow the chosen one only.
+            let first = target[i] as usize;
+            let choose = search.active || first >= nt;
+            let order = (first < nt)
+                .then_some(first)
+                .into_iter()
+                .chain((0..nt).filter(move |&s| choose && s != first));
+            let full = search.wants(v);
+            for slot in order {
+                let cell = &mut closest[i * nt + slot];
+                let warm = cell.map(|h| h.triangle);
+                let surface = self.targets.target(self.target_ids[slot]);
+                // The first target searched needs no bound (and no box test).
+                let bound = match best {
+                    None => f32::MAX,
+                    Some((rank, d, _)) => {
+                        let lower = surface.lower_bound(q);
+                        // Inside a bone's box the vertex may be inside the
+                        // bone: search it whatever the other targets' distances.
+                        let may_be_inside = lower == 0.0 && !surface.is_deforming();
+                        match rank >= 0.0 {
+                            _ if may_be_inside => f32::MAX,
+                            true if lower >= d => continue,
+                            true => d,
+                            false => continue,
+                        }
+                    }
+                };
+                let local = warm.filter(|_| !full).and_then(|t| {
+                    if search.walk {
+                        surface.walk(q, t)
+                    } else {
+                        surface.on_triangle(q, t)
+                    }
+                });
+                let hit = match local {
+                    Some(hit) => Some(hit),
+                    None => surface.closest_within(q, warm, bound),
+                };
+                if hit.is_some() {
+                    *cell = hit;
+                }
+                if let Some(hit) = hit {
+                    let inside_bone = hit.signed_distance < 0.0 && !surface.is_deforming();
+                    let rank = if inside_bone {
+                        -hit.distance - 1.0
+                    } else {
+                        hit.distance
+                    };
+                    if best.is_none_or(|(r, _, _)| rank < r) {
+                        best = Some((rank, hit.distance, slot as u32));
+                    }
+                }
+            }
+            match best {
+                Some((_, _, slot)) => {
+                    let hit = closest[i * nt + slot as usize].expect("chosen hit");
+                    point[i] = hit.point;
+                    normal[i] = hit.normal;
+                    target[i] = slot;
+                }
+                None => target[i] = u32::MAX,
+            }
         }
     }
 }

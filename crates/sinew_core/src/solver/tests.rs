@@ -307,10 +307,18 @@ fn positions_with_threads(scene: &str, threads: u32, frames: usize) -> Vec<u32> 
 
 /// Positions (as bits) after `frames` frames of a built-in scene under gravity.
 fn positions(scene: &str, method: SolverMethod, threads: u32, frames: usize) -> Vec<u32> {
+    positions_with(scene, frames, |s| {
+        s.threads = threads;
+        s.method = method;
+    })
+}
+
+/// Positions (as bits) after `frames` frames of a built-in scene under
+/// gravity, with `edit` applied to its settings.
+fn positions_with(scene: &str, frames: usize, edit: impl FnOnce(&mut SolverSettings)) -> Vec<u32> {
     let mut scene = builtin(scene).unwrap();
-    scene.settings.threads = threads;
-    scene.settings.method = method;
     scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    edit(&mut scene.settings);
     let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
     for _ in 0..frames {
         s.step();
@@ -440,6 +448,14 @@ fn global_colouring_and_hybrid_are_bit_identical_for_1_2_and_8_threads() {
         let one = positions("P3", method, 1, 30);
         assert_eq!(one, positions("P3", method, 2, 30), "{method:?}: 2 threads");
         assert_eq!(one, positions("P3", method, 8, 30), "{method:?}: 8 threads");
+        for schedule in [SweepSchedule::ByColor, SweepSchedule::ByMuscle] {
+            let got = positions_with("P3", 30, |s| {
+                s.threads = 2;
+                s.method = method;
+                s.schedule = schedule;
+            });
+            assert_eq!(one, got, "{method:?}: {schedule:?}");
+        }
         assert!(one.iter().all(|&b| f32::from_bits(b).is_finite()));
         assert_ne!(one, colored(1, "P3", 30), "{method:?} is its own order");
     }
