@@ -150,9 +150,11 @@ pub enum PlanKind {
     },
 }
 
-/// Constraints per parallel chunk of a colour: below this the fork and join
-/// cost more than the work, so smaller colours run on one thread.
-pub const CHUNK_CONSTRAINTS: usize = 256;
+/// Constraints per parallel chunk of a colour (and the least a Jacobi pass
+/// hands a thread): about 50 µs of work against about 10 µs for a fork and
+/// join on the development machine (`sinew suite` measures both), so
+/// smaller colours run on one thread.
+pub const CHUNK_CONSTRAINTS: usize = 1024;
 
 /// A muscle's colouring, ready to run: colours one after the other; inside a
 /// colour, *units* that share no particle, each a run of constraints solved

@@ -7,7 +7,9 @@
 //! moves by `ω / nᵢ` times their sum. Nothing is accumulated with atomics, so
 //! the result is the same for any thread count.
 
-use super::coloring::{ConstraintRef, commit, constraints_in_order, correction, particles_of};
+use super::coloring::{
+    CHUNK_CONSTRAINTS, ConstraintRef, commit, constraints_in_order, correction, particles_of,
+};
 use crate::constraints::{ConstraintKind, Correction};
 use crate::muscle::Muscle;
 use glam::Vec3;
@@ -113,6 +115,7 @@ pub fn project_jacobi(
                 .corrections
                 .par_iter_mut()
                 .zip(state.jacobi.par_iter())
+                .with_min_len(CHUNK_CONSTRAINTS)
                 .for_each(compute);
         } else {
             state
@@ -145,7 +148,10 @@ pub fn project_jacobi(
         *p += sum * (omega / (b - a) as f32);
     };
     if parallel {
-        m.p.par_iter_mut().enumerate().for_each(gather);
+        m.p.par_iter_mut()
+            .enumerate()
+            .with_min_len(CHUNK_CONSTRAINTS)
+            .for_each(gather);
     } else {
         m.p.iter_mut().enumerate().for_each(gather);
     }

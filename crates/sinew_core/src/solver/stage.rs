@@ -129,8 +129,9 @@ impl ClosestSchedule {
     }
 }
 
-/// Sliding constraints per parallel chunk of the closest-data block.
-pub const CLOSEST_CHUNK: usize = 128;
+/// Sliding constraints per parallel chunk of the closest-data block (a few
+/// hundred ns each, so a chunk is worth a fork and join).
+pub const CLOSEST_CHUNK: usize = 256;
 
 /// Closest data (BE5): Sliding's closest point on the closest target per
 /// vertex, and the current goals of Soft and Hard on their rest triangles.

@@ -461,6 +461,54 @@ fn global_colouring_and_hybrid_are_bit_identical_for_1_2_and_8_threads() {
     }
 }
 
+/// P1 with a 40 × 40 oval: its colours hold thousands of constraints, so
+/// threads split them into chunks (and Jacobi its passes).
+#[test]
+fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
+    use crate::mesh::primitives::MeshGenerator;
+    use crate::scene::MeshSource;
+    let run = |method, threads| {
+        let mut scene = builtin("P1").unwrap();
+        scene.muscles[0].mesh = MeshSource::Generator(MeshGenerator::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::new(0.06, 0.025, 0.025),
+            segments: 40,
+            stacks: 40,
+        });
+        scene.muscles[0].attachments.truncate(1);
+        scene.settings.method = method;
+        scene.settings.schedule = SweepSchedule::ByColor;
+        scene.settings.threads = threads;
+        scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+        for _ in 0..5 {
+            s.step();
+        }
+        let m = &s.muscles()[0];
+        if let Some(plan) = &m.colors {
+            let chunks = (0..plan.color_count()).map(|c| plan.chunk_count(c)).max();
+            assert!(chunks > Some(1), "{method:?}: no colour was split");
+        }
+        let bits: Vec<u32> = m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect();
+        bits
+    };
+    for method in [
+        SolverMethod::Colored {
+            scope: ColorScope::PerMuscle,
+        },
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        },
+        SolverMethod::Jacobi { omega: 1.5 },
+        SolverMethod::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
+    ] {
+        assert_eq!(run(method, 1), run(method, 4), "{method:?}");
+    }
+}
+
 #[test]
 fn global_colouring_and_hybrid_contract_t1_like_sequential() {
     let reference = t1_length(SolverMethod::Sequential, 45);
