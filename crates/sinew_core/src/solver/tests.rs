@@ -489,7 +489,10 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
             let chunks = (0..plan.color_count()).map(|c| plan.chunk_count(c)).max();
             assert!(chunks > Some(1), "{method:?}: no colour was split");
         }
-        let bits: Vec<u32> = m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect();
+        let bits: Vec<u32> =
+            m.x.iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect();
         bits
     };
     for method in [
