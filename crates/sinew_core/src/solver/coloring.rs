@@ -1,9 +1,10 @@
-//! Graph colouring of a muscle's constraints (SPEC §9.3, the thesis' SMT-G).
+//! Graph colouring of a muscle's constraints (SPEC §9.3, the thesis' SMT-G,
+//! and beyond it).
 //!
 //! Constraints that share no particle can be projected at the same time. A
-//! colouring splits a muscle's constraints into groups with that property:
-//! groups run one after the other, the constraints inside a group in any
-//! order (or in parallel) with the same result as Gauss–Seidel.
+//! colouring splits a muscle's constraints into colours with that property:
+//! colours run one after the other, the work inside a colour in any order
+//! (or in parallel) with the same result as Gauss–Seidel.
 //!
 //! [`ColorGroups::greedy`] is the thesis' build: each constraint, in creation
 //! order, joins the first group that shares no particle with it, or opens a
@@ -14,6 +15,13 @@
 //! point needs a group of its own, so the group count is at least the largest
 //! number of surface vertices tied to one internal point (SPEC §9.3,
 //! Appendix A: 65 groups for the biceps, 16 of them with one constraint).
+//!
+//! A [`ColorPlan`] is what the solver runs: colours of *units* (runs of
+//! constraints one thread solves in order), packed with their parallel
+//! chunks. [`ColorPlan::per_constraint`] is the thesis' colouring,
+//! [`ColorPlan::clustered`] the global scope's (vertex and star units: the
+//! arm needs 15 colours instead of 24), [`ColorPlan::hybrid`] Hybrid's big
+//! colours plus a Jacobi tail. `sweep.rs` runs them.
 
 use super::jacobi::JacobiState;
 use super::sweep;
@@ -169,6 +177,8 @@ pub const CHUNK_CONSTRAINTS: usize = 1024;
 pub struct ColorPlan {
     /// Constraints in solve order: colour by colour, unit by unit.
     refs: Vec<ConstraintRef>,
+    /// The particles each of `refs` moved when the plan was built.
+    moved: Vec<[Option<u32>; 2]>,
     /// `refs[units[u]..units[u + 1]]` is unit `u`.
     units: Vec<u32>,
     /// `units` of colour `c`: `colors[c]..colors[c + 1]`.
@@ -216,8 +226,8 @@ impl ColorPlan {
     /// - every Branch and Fiber constraint alone (an edge colouring: Branch
     ///   joins internal points, Fiber surface vertices, so they share colours).
     ///
-    /// Units are coloured greedily, largest first within each class, in that
-    /// class order.
+    /// Units are coloured greedily in that class order (vertex units, stars
+    /// with the most links first, then the edges in creation order).
     pub fn clustered(m: &Muscle, order: &[ConstraintKind]) -> Self {
         let surface = m.surface_count as u32;
         let mut vertex_units: Vec<Vec<ConstraintRef>> = vec![Vec::new(); m.x.len()];
@@ -296,6 +306,7 @@ impl ColorPlan {
         let mut owner: Vec<(u32, u32)> = vec![(0, u32::MAX); particles];
         let mut plan = Self {
             refs: Vec::new(),
+            moved: Vec::new(),
             units: vec![0],
             colors: vec![0],
             chunks: vec![0],
@@ -320,6 +331,7 @@ impl ColorPlan {
                         *o = (u, ci as u32);
                     }
                     plan.refs.push(c);
+                    plan.moved.push(particles_of(m, c));
                 }
                 chunk_size += unit.len();
                 plan.units.push(plan.refs.len() as u32);
@@ -353,8 +365,23 @@ impl ColorPlan {
         self.kind
     }
 
-    /// Whether the plan still matches `m`'s particles and constraints.
+    /// Whether the plan still matches `m`: the same particle and constraint
+    /// counts, and every planned constraint still moves the particles it
+    /// moved when the plan was built (what makes a colour's units disjoint).
+    /// One pass over the constraints; [`project_colored`] checks it before
+    /// every sweep and rebuilds a stale plan.
     pub fn fits(&self, m: &Muscle) -> bool {
+        self.particles == m.x.len()
+            && self.counts == m.counts()
+            && self
+                .refs
+                .iter()
+                .zip(&self.moved)
+                .all(|(&c, &moved)| particles_of(m, c) == moved)
+    }
+
+    /// The cheap part of [`ColorPlan::fits`]: counts only.
+    pub(super) fn sized_for(&self, m: &Muscle) -> bool {
         self.particles == m.x.len() && self.counts == m.counts()
     }
 

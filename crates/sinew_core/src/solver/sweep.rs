@@ -10,9 +10,12 @@
 //! Rust cannot see that disjointness through `&mut [Vec3]`, so this module —
 //! the only one in the crate allowed `unsafe` — hands each thread a
 //! [`SharedSlice`]: a raw view of the muscle's positions and multipliers.
-//! The views never leave this module; every sweep checks that the plan fits
-//! the muscle (particle and constraint counts) before it starts, and every
-//! access is bounds-checked.
+//! The views never leave this module and every access is bounds-checked.
+//! The plans come from `coloring::take_plan`, which checks them against the
+//! muscle's current constraint indices ([`ColorPlan::fits`]) and rebuilds a
+//! stale one, under the same `&mut` borrow of the muscle that the sweep then
+//! takes: nothing can change the indices in between. The sweeps re-check the
+//! counts.
 #![allow(unsafe_code)]
 
 use super::coloring::{ColorPlan, ConstraintRef};
@@ -154,7 +157,7 @@ impl<'a> MuscleSweep<'a> {
 
 /// Runs every colour of `plan` on `m` (the Jacobi tail apart).
 pub(super) fn sweep_muscle(m: &mut Muscle, plan: &ColorPlan, inv_h2: f32, parallel: bool) {
-    assert!(plan.fits(m), "colour plan built for another topology");
+    assert!(plan.sized_for(m), "colour plan built for another topology");
     let mut lambdas = m.constraints.take_lambdas();
     {
         let sweep = MuscleSweep::new(&mut m.p, &m.w, &m.constraints, &mut lambdas, plan, inv_h2);
@@ -177,7 +180,7 @@ pub(super) fn sweep_global(muscles: &mut [Muscle], plans: &[Option<ColorPlan>], 
         .zip(plans)
         .map(|(m, plan)| {
             plan.as_ref().map(|plan| {
-                assert!(plan.fits(m), "colour plan built for another topology");
+                assert!(plan.sized_for(m), "colour plan built for another topology");
                 m.constraints.take_lambdas()
             })
         })

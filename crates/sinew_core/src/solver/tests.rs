@@ -513,6 +513,28 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
 }
 
 #[test]
+fn a_plan_is_rebuilt_when_a_constraint_moves_other_particles() {
+    let mut scene = builtin("P1").unwrap();
+    scene.settings.method = SolverMethod::Colored {
+        scope: ColorScope::Global,
+    };
+    scene.settings.threads = 2;
+    let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+    s.step();
+    let m = s.muscle_mut(0);
+    // Retie the first fibre to another particle: the units of its colour may
+    // now share it, so the plan must not be reused.
+    let f = &mut m.constraints.fiber;
+    let other = (0..m.surface_count as u32).find(|&p| p != f.a[0] && p != f.b[0]);
+    f.b[0] = other.unwrap();
+    assert!(!m.colors.as_ref().unwrap().fits(m));
+    s.step();
+    let m = &s.muscles()[0];
+    assert!(m.colors.as_ref().unwrap().fits(m));
+    assert!(m.x.iter().all(|p| p.is_finite()));
+}
+
+#[test]
 fn global_colouring_and_hybrid_contract_t1_like_sequential() {
     let reference = t1_length(SolverMethod::Sequential, 45);
     for method in [
