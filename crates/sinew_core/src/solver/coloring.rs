@@ -62,6 +62,25 @@ pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<u32>; 2] {
     }
 }
 
+/// Every particle-index array of `m`'s constraints (Volume, which moves
+/// every particle, apart), batch by batch in a fixed order.
+fn particle_indices(m: &Muscle) -> [&[u32]; 11] {
+    let k = &m.constraints;
+    [
+        &k.attach.particle,
+        &k.branch_attach.particle,
+        &k.hard.particle,
+        &k.soft.particle,
+        &k.sliding.particle,
+        &k.branch.a,
+        &k.branch.b,
+        &k.internal.a,
+        &k.internal.b,
+        &k.fiber.a,
+        &k.fiber.b,
+    ]
+}
+
 /// Every constraint of `m` except Volume, type by type in `order`.
 pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<ConstraintRef> {
     let k = &m.constraints;
@@ -177,8 +196,10 @@ pub const CHUNK_CONSTRAINTS: usize = 1024;
 pub struct ColorPlan {
     /// Constraints in solve order: colour by colour, unit by unit.
     refs: Vec<ConstraintRef>,
-    /// The particles each of `refs` moved when the plan was built.
-    moved: Vec<[Option<u32>; 2]>,
+    /// The particle indices of every constraint when the plan was built,
+    /// batch by batch ([`particle_indices`]): what makes a colour's units
+    /// disjoint, compared whole (a memory compare) by [`ColorPlan::fits`].
+    tied: Vec<u32>,
     /// `refs[units[u]..units[u + 1]]` is unit `u`.
     units: Vec<u32>,
     /// `units` of colour `c`: `colors[c]..colors[c + 1]`.
@@ -306,7 +327,7 @@ impl ColorPlan {
         let mut owner: Vec<(u32, u32)> = vec![(0, u32::MAX); particles];
         let mut plan = Self {
             refs: Vec::new(),
-            moved: Vec::new(),
+            tied: particle_indices(m).concat(),
             units: vec![0],
             colors: vec![0],
             chunks: vec![0],
@@ -331,7 +352,6 @@ impl ColorPlan {
                         *o = (u, ci as u32);
                     }
                     plan.refs.push(c);
-                    plan.moved.push(particles_of(m, c));
                 }
                 chunk_size += unit.len();
                 plan.units.push(plan.refs.len() as u32);
@@ -368,16 +388,20 @@ impl ColorPlan {
     /// Whether the plan still matches `m`: the same particle and constraint
     /// counts, and every planned constraint still moves the particles it
     /// moved when the plan was built (what makes a colour's units disjoint).
-    /// One pass over the constraints; [`project_colored`] checks it before
-    /// every sweep and rebuilds a stale plan.
+    /// A compare of the index arrays against the plan's copy (tens of µs on
+    /// the full body); [`project_colored`] checks it before every sweep and
+    /// rebuilds a stale plan.
     pub fn fits(&self, m: &Muscle) -> bool {
-        self.particles == m.x.len()
-            && self.counts == m.counts()
-            && self
-                .refs
-                .iter()
-                .zip(&self.moved)
-                .all(|(&c, &moved)| particles_of(m, c) == moved)
+        let mut rest = self.tied.as_slice();
+        self.sized_for(m)
+            && particle_indices(m).into_iter().all(|now| {
+                let Some((then, after)) = rest.split_at_checked(now.len()) else {
+                    return false;
+                };
+                rest = after;
+                then == now
+            })
+            && rest.is_empty()
     }
 
     /// The cheap part of [`ColorPlan::fits`]: counts only.
