@@ -17,7 +17,6 @@ use crate::constraints::{
 };
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
-use crate::target::ClosestHit;
 use glam::{Affine3A, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -252,8 +251,11 @@ pub struct Muscle {
     pub target_ids: Vec<usize>,
     /// Constraint batches.
     pub constraints: MuscleConstraints,
-    /// Closest data per (vertex, target slot): `closest[v * targets + t]`.
-    pub closest: Vec<Option<ClosestHit>>,
+    /// The last closest triangle per (Sliding constraint, target slot),
+    /// `warm[i * targets + t]`, or [`crate::target::NO_TRIANGLE`]: where the next search
+    /// of that target starts (4 bytes a cell keeps the full body's table in
+    /// cache).
+    pub warm: Vec<u32>,
     /// Bone contacts' clearance per (Sliding constraint, target slot), as
     /// `closest`: where the vertex was, in the bone's frame, and how far it
     /// was from the bone then (0 = unknown). A rigid bone's distance is
@@ -415,7 +417,7 @@ impl Muscle {
             targets,
             target_ids: Vec::new(),
             constraints: MuscleConstraints::default(),
-            closest: Vec::new(),
+            warm: Vec::new(),
             clearance: Vec::new(),
             maps,
             activation_reported: false,

@@ -22,7 +22,7 @@ use super::momentum::{self, RigidMomentum};
 use super::{ColorScope, SolverMethod, coloring, jacobi};
 use crate::constraints::{ConstraintBatch, ConstraintKind};
 use crate::muscle::{Muscle, SurfaceAnchor};
-use crate::target::{TargetSet, TargetSource, TargetSurface};
+use crate::target::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource, TargetSurface};
 use glam::{Affine3A, Vec3, Vec4};
 
 /// Starts a substep: predicts positions (gravity, damping `(1 − d)^damping_exp`),
@@ -163,9 +163,9 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
             .zip(s.point.par_chunks_mut(k))
             .zip(s.normal.par_chunks_mut(k))
             .zip(s.target.par_chunks_mut(k))
-            .zip(m.closest.par_chunks_mut(k * nt))
-            .for_each(|((((particle, point), normal), target), closest)| {
-                input.closest(particle, point, normal, target, closest);
+            .zip(m.warm.par_chunks_mut(k * nt))
+            .for_each(|((((particle, point), normal), target), warm)| {
+                input.closest(particle, point, normal, target, warm);
             });
     } else {
         input.closest(
@@ -173,7 +173,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
             &mut s.point,
             &mut s.normal,
             &mut s.target,
-            &mut m.closest,
+            &mut m.warm,
         );
     }
     // Soft and Hard goals on a rigid target only move with its bone, which
@@ -204,15 +204,15 @@ struct SlidingInput<'a, T: ?Sized> {
 
 impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
     /// Closest points for a run of Sliding constraints: `particle`, `point`,
-    /// `normal` and `target` are that run's slices of the batch, `closest`
-    /// its cells (`targets` per constraint).
+    /// `normal` and `target` are that run's slices of the batch, `warm` its
+    /// cells (`targets` per constraint).
     fn closest(
         &self,
         particle: &[u32],
         point: &mut [Vec3],
         normal: &mut [Vec3],
         target: &mut [u32],
-        closest: &mut [Option<crate::target::ClosestHit>],
+        warm: &mut [u32],
     ) {
         let (nt, search) = (self.target_ids.len(), self.search);
         for i in 0..particle.len() {
@@ -221,7 +221,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // (rank, distance, slot): the rank is the distance, except that a
             // vertex inside a rigid target (a bone) ranks it first, so Sliding
             // pushes it out of the bone even when a neighbouring muscle is nearer.
-            let mut best: Option<(f32, f32, u32)> = None;
+            let mut best: Option<(f32, ClosestHit, u32)> = None;
             // Last iteration's target first; every other search is bounded by
             // the best distance so far (Sliding only needs the closest
             // target). The closest target is re-chosen in the first iteration
@@ -234,13 +234,14 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 .chain((0..nt).filter(move |&s| choose && s != first));
             let full = search.wants(v);
             for slot in order {
-                let cell = &mut closest[i * nt + slot];
-                let warm = cell.map(|h| h.triangle);
+                let cell = &mut warm[i * nt + slot];
+                let last = (*cell != NO_TRIANGLE).then_some(*cell);
                 let surface = self.targets.target(self.target_ids[slot]);
                 // The first target searched needs no bound (and no box test).
                 let bound = match best {
                     None => f32::MAX,
-                    Some((rank, d, _)) => {
+                    Some((rank, ref hit, _)) => {
+                        let d = hit.distance;
                         let lower = surface.lower_bound(q);
                         // Inside a bone's box the vertex may be inside the
                         // bone: search it whatever the other targets' distances.
@@ -253,7 +254,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         }
                     }
                 };
-                let local = warm.filter(|_| !full).and_then(|t| {
+                let local = last.filter(|_| !full).and_then(|t| {
                     if search.walk {
                         surface.walk(q, t)
                     } else {
@@ -262,12 +263,10 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 });
                 let hit = match local {
                     Some(hit) => Some(hit),
-                    None => surface.closest_within(q, warm, bound),
+                    None => surface.closest_within(q, last, bound),
                 };
-                if hit.is_some() {
-                    *cell = hit;
-                }
                 if let Some(hit) = hit {
+                    *cell = hit.triangle;
                     let inside_bone = hit.signed_distance < 0.0 && !surface.is_deforming();
                     let rank = if inside_bone {
                         -hit.distance - 1.0
@@ -275,13 +274,12 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         hit.distance
                     };
                     if best.is_none_or(|(r, _, _)| rank < r) {
-                        best = Some((rank, hit.distance, slot as u32));
+                        best = Some((rank, hit, slot as u32));
                     }
                 }
             }
             match best {
-                Some((_, _, slot)) => {
-                    let hit = closest[i * nt + slot as usize].expect("chosen hit");
+                Some((_, hit, slot)) => {
                     point[i] = hit.point;
                     normal[i] = hit.normal;
                     target[i] = slot;
@@ -405,14 +403,14 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
                 m.clearance[cell] = local.extend(lower);
                 continue;
             }
-            let closest = &mut m.closest[cell];
+            let last = &mut m.warm[cell];
             let q = m.p[v];
-            let hit = match closest.map(|h| h.triangle) {
-                Some(t) => target.walk(q, t),
-                None => target.closest_within(q, None, f32::INFINITY),
+            let hit = match *last {
+                NO_TRIANGLE => target.closest_within(q, None, f32::INFINITY),
+                t => target.walk(q, t),
             };
             if let Some(hit) = hit {
-                *closest = Some(hit);
+                *last = hit.triangle;
                 if hit.signed_distance < 0.0 {
                     m.p[v] -= hit.normal * hit.signed_distance;
                     m.clearance[cell] = Vec4::ZERO;
@@ -459,7 +457,7 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
     c.hard_anchor.clear();
     m.colors = None;
     m.jacobi = None;
-    m.closest = vec![None; n * nt];
+    m.warm = vec![NO_TRIANGLE; n * nt];
     m.clearance = vec![Vec4::ZERO; n * nt];
     if nt == 0 {
         return;
@@ -476,10 +474,10 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
         .collect();
     for v in 0..n {
         let q = m.x[v];
-        let mut best: Option<(f32, u32, crate::target::ClosestHit)> = None;
+        let mut best: Option<(f32, u32, ClosestHit)> = None;
         for (slot, &tid) in m.target_ids.iter().enumerate() {
             let hit = targets.target(tid).closest(q, None);
-            m.closest[v * nt + slot] = hit;
+            m.warm[v * nt + slot] = hit.map_or(NO_TRIANGLE, |h| h.triangle);
             match hit {
                 Some(h) => {
                     c.sliding.rest_gap.push(h.distance);
@@ -535,10 +533,10 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
                 .rest_outside
                 .extend_from_slice(&out[v * nt..(v + 1) * nt]);
         }
-        let cl = std::mem::take(&mut m.closest);
+        let all = std::mem::take(&mut m.warm);
         for &v in &c.sliding.particle {
-            m.closest
-                .extend_from_slice(&cl[v as usize * nt..(v as usize + 1) * nt]);
+            m.warm
+                .extend_from_slice(&all[v as usize * nt..(v as usize + 1) * nt]);
         }
     }
     m.relink_weights();

@@ -48,6 +48,9 @@ pub enum TargetSource {
     Muscle(usize),
 }
 
+/// A triangle index that names no triangle (no search has run yet).
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
 /// The closest point of a target to a query point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosestHit {
