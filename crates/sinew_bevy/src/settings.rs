@@ -116,6 +116,8 @@ pub struct SinewSettings {
     pub threads: u32,
     /// Frames between two full closest-point searches of a vertex. Default `16`.
     pub full_search_interval: u32,
+    /// Frames between two choices of a vertex's closest target. Default `4`.
+    pub choose_interval: u32,
     /// Walk over the targets in every iteration. Default `false`.
     pub walk_every_iteration: bool,
     /// Measure per-block time into [`SinewTimings`]. Default `true`.
@@ -143,6 +145,7 @@ impl From<SolverSettings> for SinewSettings {
             method: s.method.into(),
             threads: s.threads,
             full_search_interval: s.full_search_interval,
+            choose_interval: s.choose_interval,
             walk_every_iteration: s.walk_every_iteration,
             timers: s.timers,
             projection_order: s.projection_order,
@@ -164,6 +167,7 @@ impl SinewSettings {
             projection_order: self.projection_order.clone(),
             timers: self.timers,
             full_search_interval: self.full_search_interval,
+            choose_interval: self.choose_interval,
             walk_every_iteration: self.walk_every_iteration,
             threads: self.threads,
             // The systems split by muscle (`par_iter`); same bits either way.

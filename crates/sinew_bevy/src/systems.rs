@@ -478,6 +478,7 @@ pub(crate) fn closest_data(
     let search = stage::ClosestSchedule {
         frame: clock.frame,
         interval: s.full_search_interval.max(1),
+        choose_interval: s.choose_interval.max(1),
         active: full,
         walk: full || s.walk_every_iteration,
         substep_start: ctx.iteration == 0,

@@ -42,6 +42,12 @@ pub struct SlidingBatch {
     pub point: Vec<Vec3>,
     /// Outward normal at `point`.
     pub normal: Vec<Vec3>,
+    /// Triangle of the chosen target that `point` was found on.
+    pub triangle: Vec<u32>,
+    /// Barycentric coordinates of `point` in `triangle` when it was found.
+    pub barycentric: Vec<Vec3>,
+    /// Unit normal of `triangle`'s plane when `point` was found.
+    pub plane: Vec<Vec3>,
     /// Chosen target slot this iteration (`u32::MAX` = none within reach).
     pub target: Vec<u32>,
     /// Accumulated multipliers.

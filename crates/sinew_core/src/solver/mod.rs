@@ -145,6 +145,14 @@ pub struct SolverSettings {
     /// closest point walks over the target from last iteration's triangle
     /// (see [`crate::target`]). `1` = a full search every frame. Default: `16`.
     pub full_search_interval: u32,
+    /// Every this many frames each vertex re-chooses its closest target
+    /// among all of its muscle's targets (staggered over vertices, and always
+    /// with a full search); in between it follows the target it chose,
+    /// walking over it. A vertex pushed into a bone it does not follow is
+    /// still caught in every iteration by the bone contacts. `1` = every
+    /// frame. Default: `4` (the choice is most of closest data: a walk on
+    /// each nearby target).
+    pub choose_interval: u32,
     /// Walk over the targets in every iteration. When `false` (default), the
     /// walk runs in the first iteration of a frame and later iterations
     /// re-project onto the triangle it found (one triangle test): within a
@@ -173,6 +181,7 @@ impl Default for SolverSettings {
             projection_order: ConstraintKind::CANONICAL_ORDER.to_vec(),
             timers: true,
             full_search_interval: 16,
+            choose_interval: 4,
             walk_every_iteration: false,
             threads: 1,
             schedule: SweepSchedule::Auto,
@@ -212,6 +221,9 @@ impl SolverSettings {
         }
         if self.full_search_interval == 0 {
             return Err(bad("full_search_interval", 0.0, "must be ≥ 1"));
+        }
+        if self.choose_interval == 0 {
+            return Err(bad("choose_interval", 0.0, "must be ≥ 1"));
         }
         if self.iterations == 0 || self.substeps == 0 {
             return Err(bad("iterations/substeps", 0.0, "must be ≥ 1"));
@@ -769,6 +781,7 @@ impl Solver {
                 let search = ClosestSchedule {
                     frame: self.frame,
                     interval: self.settings.full_search_interval.max(1),
+                    choose_interval: self.settings.choose_interval.max(1),
                     active: full_searches,
                     walk: full_searches || self.settings.walk_every_iteration,
                     substep_start: it == 0,

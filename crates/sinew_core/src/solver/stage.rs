@@ -101,6 +101,9 @@ pub struct ClosestSchedule {
     pub frame: u64,
     /// Frames between two full searches of one vertex.
     pub interval: u32,
+    /// Frames between two choices of a vertex's closest target (a vertex
+    /// with a full search also chooses).
+    pub choose_interval: u32,
     /// The first iteration of a frame: full searches run, and every vertex
     /// re-chooses its closest target.
     pub active: bool,
@@ -118,6 +121,7 @@ impl ClosestSchedule {
     pub const ALWAYS: Self = Self {
         frame: 0,
         interval: 1,
+        choose_interval: 1,
         active: true,
         walk: true,
         substep_start: true,
@@ -126,6 +130,11 @@ impl ClosestSchedule {
 
     fn wants(&self, vertex: usize) -> bool {
         self.active && (vertex as u64 + self.frame).is_multiple_of(self.interval as u64)
+    }
+
+    fn chooses(&self, vertex: usize) -> bool {
+        self.active && (vertex as u64 + self.frame).is_multiple_of(self.choose_interval as u64)
+            || self.wants(vertex)
     }
 }
 
@@ -163,18 +172,38 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
             .zip(s.point.par_chunks_mut(k))
             .zip(s.normal.par_chunks_mut(k))
             .zip(s.target.par_chunks_mut(k))
+            .zip(s.triangle.par_chunks_mut(k))
+            .zip(s.barycentric.par_chunks_mut(k))
+            .zip(s.plane.par_chunks_mut(k))
             .zip(m.warm.par_chunks_mut(k * nt))
-            .for_each(|((((particle, point), normal), target), warm)| {
-                input.closest(particle, point, normal, target, warm);
-            });
+            .for_each(
+                |(
+                    ((((((particle, point), normal), target), triangle), barycentric), plane),
+                    warm,
+                )| {
+                    input.closest(SlidingRun {
+                        particle,
+                        point,
+                        normal,
+                        target,
+                        triangle,
+                        barycentric,
+                        plane,
+                        warm,
+                    });
+                },
+            );
     } else {
-        input.closest(
-            &s.particle,
-            &mut s.point,
-            &mut s.normal,
-            &mut s.target,
-            &mut m.warm,
-        );
+        input.closest(SlidingRun {
+            particle: &s.particle,
+            point: &mut s.point,
+            normal: &mut s.normal,
+            target: &mut s.target,
+            triangle: &mut s.triangle,
+            barycentric: &mut s.barycentric,
+            plane: &mut s.plane,
+            warm: &mut m.warm,
+        });
     }
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
@@ -194,6 +223,19 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     }
 }
 
+/// A run of Sliding constraints' closest data: the batch's slices for the
+/// run, and its warm cells (`targets` per constraint).
+struct SlidingRun<'a> {
+    particle: &'a [u32],
+    point: &'a mut [Vec3],
+    normal: &'a mut [Vec3],
+    target: &'a mut [u32],
+    triangle: &'a mut [u32],
+    barycentric: &'a mut [Vec3],
+    plane: &'a mut [Vec3],
+    warm: &'a mut [u32],
+}
+
 /// What the Sliding part of closest data reads.
 struct SlidingInput<'a, T: ?Sized> {
     p: &'a [Vec3],
@@ -203,17 +245,18 @@ struct SlidingInput<'a, T: ?Sized> {
 }
 
 impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
-    /// Closest points for a run of Sliding constraints: `particle`, `point`,
-    /// `normal` and `target` are that run's slices of the batch, `warm` its
-    /// cells (`targets` per constraint).
-    fn closest(
-        &self,
-        particle: &[u32],
-        point: &mut [Vec3],
-        normal: &mut [Vec3],
-        target: &mut [u32],
-        warm: &mut [u32],
-    ) {
+    /// Closest points for a run of Sliding constraints.
+    fn closest(&self, run: SlidingRun) {
+        let SlidingRun {
+            particle,
+            point,
+            normal,
+            target,
+            triangle,
+            barycentric,
+            plane,
+            warm,
+        } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
         for i in 0..particle.len() {
             let v = particle[i] as usize;
@@ -225,9 +268,21 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // Last iteration's target first; every other search is bounded by
             // the best distance so far (Sliding only needs the closest
             // target). The closest target is re-chosen in the first iteration
-            // of a frame; later iterations follow the chosen one only.
+            // of one frame in `choose_interval` (staggered over vertices);
+            // otherwise the vertex follows the chosen one only.
             let first = target[i] as usize;
-            let choose = search.active || first >= nt;
+            let choose = search.chooses(v) || first >= nt;
+            // Later iterations project the vertex onto the feature (face
+            // plane, edge or corner) of the triangle the walk found: the
+            // closest point while the vertex stays in that feature's region,
+            // which within a frame it nearly always does, and the next
+            // frame's walk moves it on. The normal keeps its value, as a
+            // muscle target's normals do within a frame.
+            if !choose && !search.walk {
+                let surface = self.targets.target(self.target_ids[first]);
+                point[i] = surface.on_feature(q, triangle[i], barycentric[i], plane[i]);
+                continue;
+            }
             let order = (first < nt)
                 .then_some(first)
                 .into_iter()
@@ -282,6 +337,12 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 Some((_, hit, slot)) => {
                     point[i] = hit.point;
                     normal[i] = hit.normal;
+                    triangle[i] = hit.triangle;
+                    barycentric[i] = hit.barycentric;
+                    plane[i] = self
+                        .targets
+                        .target(self.target_ids[slot as usize])
+                        .face_normal(hit.triangle);
                     target[i] = slot;
                 }
                 None => target[i] = u32::MAX,
@@ -495,13 +556,16 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
         let Some((distance, slot, hit)) = best else {
             continue;
         };
+        let target = targets.target(m.target_ids[slot as usize]);
         c.sliding.particle.push(v as u32);
         c.sliding.compliance.push(0.0);
         c.sliding.point.push(hit.point);
         c.sliding.normal.push(hit.normal);
+        c.sliding.triangle.push(hit.triangle);
+        c.sliding.barycentric.push(hit.barycentric);
+        c.sliding.plane.push(target.face_normal(hit.triangle));
         c.sliding.target.push(slot);
         c.sliding.lambda.push(0.0);
-        let target = targets.target(m.target_ids[slot as usize]);
         c.soft.push(v as u32, hit.point, distance, 0.0);
         c.soft_anchor.push(SurfaceAnchor {
             target: slot,

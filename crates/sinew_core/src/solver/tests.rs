@@ -58,6 +58,9 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
             s.rest_outside = s.rest_outside[keep * nt..(keep + 1) * nt].to_vec();
             s.point = vec![s.point[keep]];
             s.normal = vec![s.normal[keep]];
+            s.triangle = vec![s.triangle[keep]];
+            s.barycentric = vec![s.barycentric[keep]];
+            s.plane = vec![s.plane[keep]];
             s.target = vec![s.target[keep]];
             s.lambda = vec![0.0];
         }
@@ -618,4 +621,67 @@ fn jacobi_contracts_t1_and_rejects_a_bad_omega() {
     assert!(Solver::new(settings.clone()).is_err());
     settings.method = SolverMethod::Jacobi { omega: f32::NAN };
     assert!(Solver::new(settings).is_err());
+}
+
+#[test]
+fn later_iterations_project_onto_the_feature_the_walk_found() {
+    // After the first iteration's walk, a later iteration projects each
+    // vertex onto the feature (face plane, edge, corner) of the triangle the
+    // walk found instead of searching the target again. Where the vertex
+    // stays in that feature's region the point is the exact closest point.
+    let later = ClosestSchedule {
+        active: false,
+        walk: false,
+        substep_start: false,
+        ..ClosestSchedule::ALWAYS
+    };
+    let region = |b: Vec3| b.cmpgt(Vec3::ZERO).bitmask();
+    // Contacts compared on a corner, an edge, a face; and in all.
+    let (mut compared, mut total) = ([0; 3], 0);
+    for scene in ["P1", "P3"] {
+        let mut solver = builtin(scene)
+            .unwrap()
+            .instantiate(std::path::Path::new("."))
+            .unwrap();
+        for _ in 0..10 {
+            solver.step();
+        }
+        let targets = solver.targets.as_slice();
+        for m in solver.muscles() {
+            let mut m = m.clone();
+            closest_data(&mut m, targets, ClosestSchedule::ALWAYS);
+            for (i, &v) in m.constraints.sliding.particle.iter().enumerate() {
+                let n = m.constraints.sliding.normal[i];
+                m.p[v as usize] += 1e-3 * n.any_orthonormal_vector();
+            }
+            let mut exact = m.clone();
+            closest_data(&mut exact, targets, ClosestSchedule::ALWAYS);
+            closest_data(&mut m, targets, later);
+            let (fast, exact) = (&m.constraints.sliding, &exact.constraints.sliding);
+            total += fast.len();
+            for i in 0..fast.len() {
+                let same_feature = exact.triangle[i] == fast.triangle[i]
+                    && exact.target[i] == fast.target[i]
+                    && region(exact.barycentric[i]) == region(fast.barycentric[i]);
+                if same_feature {
+                    let d = fast.point[i].distance(exact.point[i]);
+                    assert!(d < 1e-6, "{scene}, {}: constraint {i}: {d}", m.name);
+                    compared[region(fast.barycentric[i]).count_ones() as usize - 1] += 1;
+                }
+            }
+        }
+    }
+    assert!(compared.iter().all(|&n| n > 0), "{compared:?}");
+    assert!(
+        compared.iter().sum::<usize>() > total / 2,
+        "{compared:?} of {total}"
+    );
+    let settings = SolverSettings {
+        choose_interval: 0,
+        ..Default::default()
+    };
+    assert!(
+        settings.validate().is_err(),
+        "choose_interval 0 is rejected"
+    );
 }

@@ -25,7 +25,11 @@
 //! ([`TargetSurface::on_triangle`]), and runs the full search for each vertex
 //! once every [`crate::solver::SolverSettings::full_search_interval`] frames
 //! (staggered over vertices), so a closer region found elsewhere on a target
-//! (or a closer target) is picked up within a few frames.
+//! is picked up within a few frames. A vertex re-chooses which of its
+//! muscle's targets it slides on once every
+//! [`crate::solver::SolverSettings::choose_interval`] frames (staggered too,
+//! and at every full search), walking on each target whose bounding box is
+//! nearer than the best distance so far.
 //!
 //! A deforming target's BVH is refitted lazily. [`TargetSurface::publish`]
 //! records how far any vertex has moved since the boxes were fitted (the
@@ -532,6 +536,50 @@ impl TargetSurface {
             triangle,
             distance: d2.sqrt(),
             signed_distance: normal.dot(query - point),
+        }
+    }
+
+    /// The closest point to `query` (world) on the feature of triangle `t`
+    /// that barycentric `bary` lies on: its plane (unit normal `plane`) for
+    /// an interior point, the segment of an edge, or a corner. It is the
+    /// closest point of the triangle while the query stays in that feature's
+    /// region, for a few loads instead of a triangle test: what later
+    /// iterations of a frame ask for, the vertex having moved a little.
+    pub fn on_feature(&self, query: Vec3, t: u32, bary: Vec3, plane: Vec3) -> Vec3 {
+        let [a, b, c] = self.triangles[t as usize];
+        match (bary.x > 0.0, bary.y > 0.0, bary.z > 0.0) {
+            (true, true, true) => {
+                let on = self.point_at(t, bary);
+                query - plane * plane.dot(query - on)
+            }
+            (true, true, false) => self.on_segment(query, a, b),
+            (false, true, true) => self.on_segment(query, b, c),
+            (true, false, true) => self.on_segment(query, c, a),
+            (true, false, false) => self.world_vertex(a),
+            (false, true, false) => self.world_vertex(b),
+            _ => self.world_vertex(c),
+        }
+    }
+
+    /// The closest point to `query` (world) on the edge from vertex `a` to `b`.
+    fn on_segment(&self, query: Vec3, a: u32, b: u32) -> Vec3 {
+        let (pa, pb) = (self.world_vertex(a), self.world_vertex(b));
+        let edge = pb - pa;
+        let along = (query - pa).dot(edge) / edge.length_squared().max(f32::MIN_POSITIVE);
+        pa + edge * along.clamp(0.0, 1.0)
+    }
+
+    /// World unit normal of triangle `t`'s plane (from its winding; `Y`
+    /// for a degenerate triangle).
+    pub fn face_normal(&self, t: u32) -> Vec3 {
+        let [a, b, c] = self.triangles[t as usize].map(|i| self.positions[i as usize]);
+        let local = (b - a).cross(c - a);
+        if self.identity {
+            local.normalize_or(Vec3::Y)
+        } else {
+            self.transform
+                .transform_vector3(local)
+                .normalize_or(Vec3::Y)
         }
     }
 
