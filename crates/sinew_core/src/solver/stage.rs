@@ -164,46 +164,13 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
         targets,
         search,
     };
-    let s = &mut c.sliding;
-    if search.parallel && s.len() > CLOSEST_CHUNK {
-        let k = CLOSEST_CHUNK;
-        s.particle
-            .par_chunks(k)
-            .zip(s.point.par_chunks_mut(k))
-            .zip(s.normal.par_chunks_mut(k))
-            .zip(s.target.par_chunks_mut(k))
-            .zip(s.triangle.par_chunks_mut(k))
-            .zip(s.barycentric.par_chunks_mut(k))
-            .zip(s.plane.par_chunks_mut(k))
-            .zip(m.warm.par_chunks_mut(k * nt))
-            .for_each(
-                |(
-                    ((((((particle, point), normal), target), triangle), barycentric), plane),
-                    warm,
-                )| {
-                    input.closest(SlidingRun {
-                        particle,
-                        point,
-                        normal,
-                        target,
-                        triangle,
-                        barycentric,
-                        plane,
-                        warm,
-                    });
-                },
-            );
+    let run = SlidingRun::of(&mut c.sliding, &mut m.warm);
+    if search.parallel && run.particle.len() > CLOSEST_CHUNK {
+        run.split(CLOSEST_CHUNK, nt)
+            .into_par_iter()
+            .for_each(|run| input.closest(run));
     } else {
-        input.closest(SlidingRun {
-            particle: &s.particle,
-            point: &mut s.point,
-            normal: &mut s.normal,
-            target: &mut s.target,
-            triangle: &mut s.triangle,
-            barycentric: &mut s.barycentric,
-            plane: &mut s.plane,
-            warm: &mut m.warm,
-        });
+        input.closest(run);
     }
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
@@ -234,6 +201,49 @@ struct SlidingRun<'a> {
     barycentric: &'a mut [Vec3],
     plane: &'a mut [Vec3],
     warm: &'a mut [u32],
+}
+
+impl<'a> SlidingRun<'a> {
+    /// The whole batch, with the muscle's warm cells.
+    fn of(s: &'a mut crate::constraints::SlidingBatch, warm: &'a mut [u32]) -> Self {
+        Self {
+            particle: &s.particle,
+            point: &mut s.point,
+            normal: &mut s.normal,
+            target: &mut s.target,
+            triangle: &mut s.triangle,
+            barycentric: &mut s.barycentric,
+            plane: &mut s.plane,
+            warm,
+        }
+    }
+
+    /// Runs of `k` constraints (the last one shorter); `targets` warm cells
+    /// per constraint.
+    fn split(mut self, k: usize, targets: usize) -> Vec<Self> {
+        fn front<'a, T>(slice: &mut &'a mut [T], k: usize) -> &'a mut [T] {
+            let (head, tail) = std::mem::take(slice).split_at_mut(k);
+            *slice = tail;
+            head
+        }
+        let mut runs = Vec::new();
+        while self.particle.len() > k {
+            let (particle, rest) = self.particle.split_at(k);
+            self.particle = rest;
+            runs.push(Self {
+                particle,
+                point: front(&mut self.point, k),
+                normal: front(&mut self.normal, k),
+                target: front(&mut self.target, k),
+                triangle: front(&mut self.triangle, k),
+                barycentric: front(&mut self.barycentric, k),
+                plane: front(&mut self.plane, k),
+                warm: front(&mut self.warm, k * targets),
+            });
+        }
+        runs.push(self);
+        runs
+    }
 }
 
 /// What the Sliding part of closest data reads.
