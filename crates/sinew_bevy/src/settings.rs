@@ -116,8 +116,10 @@ pub struct SinewSettings {
     pub threads: u32,
     /// Frames between two full closest-point searches of a vertex. Default `16`.
     pub full_search_interval: u32,
-    /// Frames between two choices of a vertex's closest target. Default `4`.
+    /// Frames between two choices of a vertex's closest target. Default `1`.
     pub choose_interval: u32,
+    /// Later iterations project onto the feature the walk found. Default `false`.
+    pub feature_contacts: bool,
     /// Walk over the targets in every iteration. Default `false`.
     pub walk_every_iteration: bool,
     /// Measure per-block time into [`SinewTimings`]. Default `true`.
@@ -146,6 +148,7 @@ impl From<SolverSettings> for SinewSettings {
             threads: s.threads,
             full_search_interval: s.full_search_interval,
             choose_interval: s.choose_interval,
+            feature_contacts: s.feature_contacts,
             walk_every_iteration: s.walk_every_iteration,
             timers: s.timers,
             projection_order: s.projection_order,
@@ -168,6 +171,7 @@ impl SinewSettings {
             timers: self.timers,
             full_search_interval: self.full_search_interval,
             choose_interval: self.choose_interval,
+            feature_contacts: self.feature_contacts,
             walk_every_iteration: self.walk_every_iteration,
             threads: self.threads,
             // The systems split by muscle (`par_iter`); same bits either way.

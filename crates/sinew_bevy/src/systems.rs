@@ -479,6 +479,7 @@ pub(crate) fn closest_data(
         frame: clock.frame,
         interval: s.full_search_interval.max(1),
         choose_interval: s.choose_interval.max(1),
+        feature_contacts: s.feature_contacts,
         active: full,
         walk: full || s.walk_every_iteration,
         substep_start: ctx.iteration == 0,

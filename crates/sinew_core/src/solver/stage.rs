@@ -104,6 +104,9 @@ pub struct ClosestSchedule {
     /// Frames between two choices of a vertex's closest target (a vertex
     /// with a full search also chooses).
     pub choose_interval: u32,
+    /// Later iterations project onto the feature the walk found
+    /// ([`crate::solver::SolverSettings::feature_contacts`]).
+    pub feature_contacts: bool,
     /// The first iteration of a frame: full searches run, and every vertex
     /// re-chooses its closest target.
     pub active: bool,
@@ -122,6 +125,7 @@ impl ClosestSchedule {
         frame: 0,
         interval: 1,
         choose_interval: 1,
+        feature_contacts: false,
         active: true,
         walk: true,
         substep_start: true,
@@ -288,7 +292,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // which within a frame it nearly always does, and the next
             // frame's walk moves it on. The normal keeps its value, as a
             // muscle target's normals do within a frame.
-            if !choose && !search.walk {
+            if !choose && !search.walk && search.feature_contacts {
                 let surface = self.targets.target(self.target_ids[first]);
                 point[i] = surface.on_feature(q, triangle[i], barycentric[i], plane[i]);
                 continue;

@@ -633,6 +633,7 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
         active: false,
         walk: false,
         substep_start: false,
+        feature_contacts: true,
         ..ClosestSchedule::ALWAYS
     };
     let region = |b: Vec3| b.cmpgt(Vec3::ZERO).bitmask();
