@@ -257,7 +257,7 @@ pub struct Muscle {
     /// cache).
     pub warm: Vec<u32>,
     /// Bone contacts' clearance per (Sliding constraint, target slot), as
-    /// `closest`: where the vertex was, in the bone's frame, and how far it
+    /// `warm`: where the vertex was, in the bone's frame, and how far it
     /// was from the bone then (0 = unknown). A rigid bone's distance is
     /// 1-Lipschitz in the vertex position, so while the vertex stays within
     /// that distance of that point it cannot have entered the bone.

@@ -107,8 +107,8 @@ pub struct ClosestSchedule {
     /// Later iterations project onto the feature the walk found
     /// ([`crate::solver::SolverSettings::feature_contacts`]).
     pub feature_contacts: bool,
-    /// The first iteration of a frame: full searches run, and every vertex
-    /// re-chooses its closest target.
+    /// The first iteration of a frame: full searches run, and vertices
+    /// re-choose their closest target (one in `choose_interval`).
     pub active: bool,
     /// Walk from the last triangle (else re-project onto it).
     pub walk: bool,
@@ -353,10 +353,14 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                     normal[i] = hit.normal;
                     triangle[i] = hit.triangle;
                     barycentric[i] = hit.barycentric;
-                    plane[i] = self
-                        .targets
-                        .target(self.target_ids[slot as usize])
-                        .face_normal(hit.triangle);
+                    // Only the feature projection reads the plane; it runs
+                    // after a first iteration that comes here.
+                    if search.feature_contacts {
+                        plane[i] = self
+                            .targets
+                            .target(self.target_ids[slot as usize])
+                            .face_normal(hit.triangle);
+                    }
                     target[i] = slot;
                 }
                 None => target[i] = u32::MAX,

@@ -629,12 +629,17 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
     // vertex onto the feature (face plane, edge, corner) of the triangle the
     // walk found instead of searching the target again. Where the vertex
     // stays in that feature's region the point is the exact closest point.
+    // The first iteration of a frame, with the feature projection on (it
+    // records each contact's plane), then a later one.
+    let first = ClosestSchedule {
+        feature_contacts: true,
+        ..ClosestSchedule::ALWAYS
+    };
     let later = ClosestSchedule {
         active: false,
         walk: false,
         substep_start: false,
-        feature_contacts: true,
-        ..ClosestSchedule::ALWAYS
+        ..first
     };
     let region = |b: Vec3| b.cmpgt(Vec3::ZERO).bitmask();
     // Contacts compared on a corner, an edge, a face; and in all.
@@ -650,13 +655,13 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
         let targets = solver.targets.as_slice();
         for m in solver.muscles() {
             let mut m = m.clone();
-            closest_data(&mut m, targets, ClosestSchedule::ALWAYS);
+            closest_data(&mut m, targets, first);
             for (i, &v) in m.constraints.sliding.particle.iter().enumerate() {
                 let n = m.constraints.sliding.normal[i];
                 m.p[v as usize] += 1e-3 * n.any_orthonormal_vector();
             }
             let mut exact = m.clone();
-            closest_data(&mut exact, targets, ClosestSchedule::ALWAYS);
+            closest_data(&mut exact, targets, first);
             closest_data(&mut m, targets, later);
             let (fast, exact) = (&m.constraints.sliding, &exact.constraints.sliding);
             total += fast.len();
