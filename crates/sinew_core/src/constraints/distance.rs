@@ -173,17 +173,23 @@ impl ConstraintBatch for DistanceBatch {
         &self.lambda
     }
 
-    #[inline]
-    fn correction_at<P: Particles + ?Sized>(
+    #[inline(always)]
+    fn particles(&self, i: usize) -> [u32; 2] {
+        [self.a[i], self.b[i]]
+    }
+
+    #[inline(always)]
+    fn correction_with<P: Particles + ?Sized>(
         &self,
         i: usize,
+        [a, b]: [u32; 2],
         lambda: f32,
         p: &P,
         w: &[f32],
         inv_dt2: f32,
     ) -> Option<Correction> {
         let alpha = self.compliance * inv_dt2;
-        let (ia, ib) = (self.a[i] as usize, self.b[i] as usize);
+        let (ia, ib) = (a as usize, b as usize);
         let (pa, pb) = (p.at(ia), p.at(ib));
         let d = pa - pb;
         let len = d.length();
@@ -197,6 +203,6 @@ impl ConstraintBatch for DistanceBatch {
         to_a += wa * n;
         let mut to_b = pb;
         to_b -= wb * n;
-        Some(Correction::two(dl, (self.a[i], to_a), (self.b[i], to_b)))
+        Some(Correction::two(dl, (a, to_a), (b, to_b)))
     }
 }

@@ -189,9 +189,27 @@ pub trait ConstraintBatch {
     /// Number of constraints.
     fn count(&self) -> usize;
 
+    /// The particles constraint `i` moves: `[a, b]` for a pair, `[p, p]`
+    /// for a single particle (targets are read-only).
+    fn particles(&self, i: usize) -> [u32; 2];
+
     /// Projection of constraint `i` with accumulated multiplier `lambda` at
-    /// positions `p`, not yet written (`None`: nothing to do). The kernel
-    /// every method shares.
+    /// positions `p`, moving `particles` (what [`ConstraintBatch::particles`]
+    /// gives, or a colour plan's copy of it), not yet written (`None`:
+    /// nothing to do). The kernel every method shares; a correction moves
+    /// only `particles`.
+    fn correction_with<P: Particles + ?Sized>(
+        &self,
+        i: usize,
+        particles: [u32; 2],
+        lambda: f32,
+        p: &P,
+        w: &[f32],
+        inv_dt2: f32,
+    ) -> Option<Correction>;
+
+    /// [`ConstraintBatch::correction_with`] on the batch's own particles.
+    #[inline(always)]
     fn correction_at<P: Particles + ?Sized>(
         &self,
         i: usize,
@@ -199,7 +217,9 @@ pub trait ConstraintBatch {
         p: &P,
         w: &[f32],
         inv_dt2: f32,
-    ) -> Option<Correction>;
+    ) -> Option<Correction> {
+        self.correction_with(i, self.particles(i), lambda, p, w, inv_dt2)
+    }
 
     /// Projection of constraint `i` at `p` with its own multiplier, not yet
     /// written (`None`: nothing to do).

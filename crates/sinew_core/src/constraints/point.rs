@@ -66,10 +66,16 @@ impl ConstraintBatch for PointBatch {
         &self.lambda
     }
 
-    #[inline]
-    fn correction_at<P: Particles + ?Sized>(
+    #[inline(always)]
+    fn particles(&self, i: usize) -> [u32; 2] {
+        [self.particle[i]; 2]
+    }
+
+    #[inline(always)]
+    fn correction_with<P: Particles + ?Sized>(
         &self,
         i: usize,
+        [particle, _]: [u32; 2],
         lambda: f32,
         p: &P,
         w: &[f32],
@@ -79,7 +85,7 @@ impl ConstraintBatch for PointBatch {
         if !alpha.is_finite() {
             return None;
         }
-        let k = self.particle[i] as usize;
+        let k = particle as usize;
         let x = p.at(k);
         let d = x - self.goal[i];
         let len = d.length();
@@ -89,6 +95,6 @@ impl ConstraintBatch for PointBatch {
         let dl = delta_lambda(len - self.rest[i], lambda, w[k], alpha);
         let mut to = x;
         to += d * (w[k] * dl / len);
-        Some(Correction::one(dl, self.particle[i], to))
+        Some(Correction::one(dl, particle, to))
     }
 }

@@ -106,10 +106,16 @@ impl ConstraintBatch for SlidingBatch {
         &self.lambda
     }
 
-    #[inline]
-    fn correction_at<P: Particles + ?Sized>(
+    #[inline(always)]
+    fn particles(&self, i: usize) -> [u32; 2] {
+        [self.particle[i]; 2]
+    }
+
+    #[inline(always)]
+    fn correction_with<P: Particles + ?Sized>(
         &self,
         i: usize,
+        [particle, _]: [u32; 2],
         lambda: f32,
         p: &P,
         w: &[f32],
@@ -119,7 +125,7 @@ impl ConstraintBatch for SlidingBatch {
         if !alpha.is_finite() {
             return None;
         }
-        let k = self.particle[i] as usize;
+        let k = particle as usize;
         let start = p.at(k);
         let mut x = start;
         let t = self.target[i];
@@ -131,7 +137,7 @@ impl ConstraintBatch for SlidingBatch {
             }
         }
         let Some((c, g)) = self.value_and_gradient(i, x) else {
-            return (x != start).then(|| Correction::one(0.0, self.particle[i], x));
+            return (x != start).then(|| Correction::one(0.0, particle, x));
         };
         let mut dl = delta_lambda(c, lambda, w[k] * g.length_squared(), alpha);
         if self.mode == SlidingMode::Contact {
@@ -140,6 +146,6 @@ impl ConstraintBatch for SlidingBatch {
             dl = total - lambda;
         }
         x += g * (w[k] * dl);
-        Some(Correction::one(dl, self.particle[i], x))
+        Some(Correction::one(dl, particle, x))
     }
 }

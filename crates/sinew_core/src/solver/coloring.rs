@@ -177,6 +177,48 @@ pub enum PlanKind {
     },
 }
 
+/// One constraint as a colour sweep runs it: its index in its batch and the
+/// particles it moves, copied when the plan was built. The sweep writes only
+/// these particles, so what makes a colour race-free (no particle in two of
+/// its units) is checked on data the plan owns: a muscle edited after the
+/// plan was built can make the plan stale ([`ColorPlan::fits`]), never unsound.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct PlannedConstraint {
+    /// Index in its type's batch.
+    pub index: u32,
+    /// What [`ConstraintBatch::particles`] gave when the plan was built.
+    pub particles: [u32; 2],
+}
+
+/// A run of a chunk's constraints of one type: `ops[start..end]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Segment {
+    /// Constraint type of the run.
+    pub kind: ConstraintKind,
+    /// First op.
+    pub start: u32,
+    /// One past the last op.
+    pub end: u32,
+}
+
+/// The particles constraint `c` of `m` moves, as its batch gives them
+/// (`[p, p]` for one particle; Volume has none).
+fn batch_particles(m: &Muscle, c: ConstraintRef) -> [u32; 2] {
+    let k = &m.constraints;
+    let i = c.index as usize;
+    match c.kind {
+        ConstraintKind::Attach => k.attach.particles(i),
+        ConstraintKind::BranchAttach => k.branch_attach.particles(i),
+        ConstraintKind::Hard => k.hard.particles(i),
+        ConstraintKind::Soft => k.soft.particles(i),
+        ConstraintKind::Sliding => k.sliding.particles(i),
+        ConstraintKind::Branch => k.branch.particles(i),
+        ConstraintKind::Internal => k.internal.particles(i),
+        ConstraintKind::Fiber => k.fiber.particles(i),
+        ConstraintKind::Volume => unreachable!("Volume is solved apart"),
+    }
+}
+
 /// Constraints per parallel chunk of a colour (and the least a Jacobi pass
 /// hands a thread): about 50 µs of work against about 10 µs for a fork and
 /// join on the development machine (`sinew suite` measures both), so
@@ -196,6 +238,13 @@ pub const CHUNK_CONSTRAINTS: usize = 1024;
 pub struct ColorPlan {
     /// Constraints in solve order: colour by colour, unit by unit.
     refs: Vec<ConstraintRef>,
+    /// What the sweeps run: each chunk's constraints as runs of one type
+    /// (`segments`), with the particles they move copied from the muscle.
+    ops: Vec<PlannedConstraint>,
+    /// Runs of `ops` of one type; chunk `g` (a global chunk index) owns
+    /// `segments[chunk_segments[g]..chunk_segments[g + 1]]`.
+    segments: Vec<Segment>,
+    chunk_segments: Vec<u32>,
     /// The particle indices of every constraint when the plan was built,
     /// batch by batch ([`particle_indices`]): what makes a colour's units
     /// disjoint, compared whole (a memory compare) by [`ColorPlan::fits`].
@@ -232,7 +281,7 @@ impl ColorPlan {
             .into_iter()
             .map(|g| g.into_iter().map(|c| vec![c]).collect())
             .collect();
-        Self::new(m, colors, Vec::new(), PlanKind::PerConstraint)
+        Self::new(m, order, colors, Vec::new(), PlanKind::PerConstraint)
     }
 
     /// Clustered colouring for few sweeps (SPEC §9.3, beyond the thesis):
@@ -274,7 +323,7 @@ impl ColorPlan {
             .into_iter()
             .map(|color| color.into_iter().map(|u| units[u].clone()).collect())
             .collect();
-        Self::new(m, colors, Vec::new(), PlanKind::Clustered)
+        Self::new(m, order, colors, Vec::new(), PlanKind::Clustered)
     }
 
     /// Hybrid (Fratarcangeli & Pellacini 2015): the thesis' per-constraint
@@ -291,6 +340,7 @@ impl ColorPlan {
         let tail = small.concat();
         Self::new(
             m,
+            order,
             colors,
             tail,
             PlanKind::Hybrid {
@@ -304,6 +354,7 @@ impl ColorPlan {
     /// builder, and the parallel sweep must never see it.
     fn new(
         m: &Muscle,
+        order: &[ConstraintKind],
         colors: Vec<Vec<Vec<ConstraintRef>>>,
         tail: Vec<ConstraintRef>,
         kind: PlanKind,
@@ -327,6 +378,9 @@ impl ColorPlan {
         let mut owner: Vec<(u32, u32)> = vec![(0, u32::MAX); particles];
         let mut plan = Self {
             refs: Vec::new(),
+            ops: Vec::new(),
+            segments: Vec::new(),
+            chunk_segments: vec![0],
             tied: particle_indices(m).concat(),
             units: vec![0],
             colors: vec![0],
@@ -377,7 +431,49 @@ impl ColorPlan {
         if !tail.is_empty() {
             plan.tail = Some(JacobiState::from_parts(m, Vec::new(), tail));
         }
+        plan.pack_segments(m, order);
         plan
+    }
+
+    /// Splits every chunk into runs of one constraint type, in `order`'s
+    /// type order. The units of a colour share no particle, so only each
+    /// unit's own order matters, and it is kept: units are built type by
+    /// type in `order` (checked), and the sort is stable. The runs need no
+    /// per-constraint type dispatch, and the result is bit-identical to
+    /// solving unit after unit.
+    fn pack_segments(&mut self, m: &Muscle, order: &[ConstraintKind]) {
+        let rank = |k: ConstraintKind| order.iter().position(|&o| o == k).unwrap_or(order.len());
+        for u in 0..self.units.len() - 1 {
+            let unit = self.unit(u);
+            assert!(
+                unit.windows(2).all(|w| rank(w[0].kind) <= rank(w[1].kind)),
+                "unit {u} is not in the projection order's type order"
+            );
+        }
+        let mut chunk = Vec::new();
+        for g in 0..self.chunks.len() - 1 {
+            let (u0, u1) = (self.chunks[g] as usize, self.chunks[g + 1] as usize);
+            chunk.clear();
+            chunk.extend_from_slice(&self.refs[self.units[u0] as usize..self.units[u1] as usize]);
+            chunk.sort_by_key(|c| rank(c.kind));
+            let first = self.segments.len();
+            for c in &chunk {
+                let start = self.ops.len() as u32;
+                self.ops.push(PlannedConstraint {
+                    index: c.index,
+                    particles: batch_particles(m, *c),
+                });
+                match self.segments[first..].last_mut() {
+                    Some(s) if s.kind == c.kind => s.end += 1,
+                    _ => self.segments.push(Segment {
+                        kind: c.kind,
+                        start,
+                        end: start + 1,
+                    }),
+                }
+            }
+            self.chunk_segments.push(self.segments.len() as u32);
+        }
     }
 
     /// How the plan was built.
@@ -439,10 +535,17 @@ impl ColorPlan {
         (self.chunk_colors[c + 1] - self.chunk_colors[c]) as usize
     }
 
-    /// The units of chunk `k` of colour `c`.
-    pub(super) fn chunk_range(&self, c: usize, k: usize) -> std::ops::Range<usize> {
-        let at = self.chunk_colors[c] as usize + k;
-        self.chunks[at] as usize..self.chunks[at + 1] as usize
+    /// The runs of one constraint type of chunk `k` of colour `c`, in
+    /// solve order.
+    pub(super) fn chunk_segments(&self, c: usize, k: usize) -> &[Segment] {
+        let g = self.chunk_colors[c] as usize + k;
+        &self.segments[self.chunk_segments[g] as usize..self.chunk_segments[g + 1] as usize]
+    }
+
+    /// The constraints of run `s`.
+    #[inline]
+    pub(super) fn segment_ops(&self, s: &Segment) -> &[PlannedConstraint] {
+        &self.ops[s.start as usize..s.end as usize]
     }
 
     /// The constraints solved Jacobi after the colours (Hybrid), if any.

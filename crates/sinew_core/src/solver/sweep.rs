@@ -18,7 +18,7 @@
 //! counts.
 #![allow(unsafe_code)]
 
-use super::coloring::{ColorPlan, ConstraintRef};
+use super::coloring::{ColorPlan, PlannedConstraint};
 use crate::constraints::{ConstraintBatch, ConstraintKind, MuscleLambdas, Particles};
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
@@ -107,36 +107,45 @@ impl<'a> MuscleSweep<'a> {
         }
     }
 
-    /// Projects one constraint and writes its correction.
-    #[inline(always)]
-    fn solve(&self, c: ConstraintRef) {
-        let (i, k, p, w, h) = (c.index as usize, self.k, &self.p, self.w, self.inv_h2);
-        let lambda = &self.lambdas[c.kind as usize];
-        let l = lambda.read(i);
-        let correction = match c.kind {
-            ConstraintKind::Attach => k.attach.correction_at(i, l, p, w, h),
-            ConstraintKind::BranchAttach => k.branch_attach.correction_at(i, l, p, w, h),
-            ConstraintKind::Hard => k.hard.correction_at(i, l, p, w, h),
-            ConstraintKind::Soft => k.soft.correction_at(i, l, p, w, h),
-            ConstraintKind::Sliding => k.sliding.correction_at(i, l, p, w, h),
-            ConstraintKind::Branch => k.branch.correction_at(i, l, p, w, h),
-            ConstraintKind::Internal => k.internal.correction_at(i, l, p, w, h),
-            ConstraintKind::Fiber => k.fiber.correction_at(i, l, p, w, h),
-            ConstraintKind::Volume => None,
-        };
-        if let Some(c) = correction {
-            lambda.write(i, l + c.dlambda);
-            for &(particle, to) in &c.moves[..c.count as usize] {
-                p.write(particle as usize, to);
+    /// Runs chunk `chunk` of colour `color`: its runs of one constraint
+    /// type one after the other.
+    fn run_chunk(&self, color: usize, chunk: usize) {
+        let k = self.k;
+        for s in self.plan.chunk_segments(color, chunk) {
+            let ops = self.plan.segment_ops(s);
+            match s.kind {
+                ConstraintKind::Attach => self.run(&k.attach, s.kind, ops),
+                ConstraintKind::BranchAttach => self.run(&k.branch_attach, s.kind, ops),
+                ConstraintKind::Hard => self.run(&k.hard, s.kind, ops),
+                ConstraintKind::Soft => self.run(&k.soft, s.kind, ops),
+                ConstraintKind::Sliding => self.run(&k.sliding, s.kind, ops),
+                ConstraintKind::Branch => self.run(&k.branch, s.kind, ops),
+                ConstraintKind::Internal => self.run(&k.internal, s.kind, ops),
+                ConstraintKind::Fiber => self.run(&k.fiber, s.kind, ops),
+                ConstraintKind::Volume => {}
             }
         }
     }
 
-    /// Runs chunk `chunk` of colour `color`: its units one after the other.
-    fn run_chunk(&self, color: usize, chunk: usize) {
-        for u in self.plan.chunk_range(color, chunk) {
-            for &c in self.plan.unit(u) {
-                self.solve(c);
+    /// Projects a run of `batch`'s constraints (of type `kind`) one after the
+    /// other, writing each correction at once. Positions are written only at
+    /// the particles the plan gives (the kernel moves exactly those, in
+    /// order), so the plan's disjointness is what the writes rely on.
+    #[inline(always)]
+    fn run<B: ConstraintBatch>(&self, batch: &B, kind: ConstraintKind, ops: &[PlannedConstraint]) {
+        let (p, w, h) = (&self.p, self.w, self.inv_h2);
+        let lambda = &self.lambdas[kind as usize];
+        for op in ops {
+            let i = op.index as usize;
+            let l = lambda.read(i);
+            if let Some(c) = batch.correction_with(i, op.particles, l, p, w, h) {
+                lambda.write(i, l + c.dlambda);
+                for (&(moved, to), &particle) in
+                    c.moves[..c.count as usize].iter().zip(&op.particles)
+                {
+                    debug_assert_eq!(moved, particle);
+                    p.write(particle as usize, to);
+                }
             }
         }
     }
