@@ -116,9 +116,9 @@ pub struct SinewSettings {
     pub threads: u32,
     /// Frames between two full closest-point searches of a vertex. Default `16`.
     pub full_search_interval: u32,
-    /// Frames between two choices of a vertex's closest target. Default `1`.
+    /// Frames between two choices of a vertex's closest target. Default `4`.
     pub choose_interval: u32,
-    /// Later iterations project onto the feature the walk found. Default `false`.
+    /// Later iterations project onto the feature the walk found. Default `true`.
     pub feature_contacts: bool,
     /// Walk over the targets in every iteration. Default `false`.
     pub walk_every_iteration: bool,

@@ -527,11 +527,19 @@ pub(crate) fn project(
             // A target went missing mid-step: project without contacts.
             let saved = std::mem::take(&mut m.target_ids);
             let none: &[&TargetSurface] = &[];
-            stage::project_iteration(m, method, order, none, inv_h2, parallel);
+            stage::project_iteration(m, method, order, none, inv_h2, parallel, it == 0);
             m.target_ids = saved;
             return;
         }
-        stage::project_iteration(m, method, order, surfaces.as_slice(), inv_h2, parallel);
+        stage::project_iteration(
+            m,
+            method,
+            order,
+            surfaces.as_slice(),
+            inv_h2,
+            parallel,
+            it == 0,
+        );
     });
     lap(s.timers, start, &mut timings.step.project);
 }

@@ -158,3 +158,64 @@ fn global_colouring_of_the_arm_needs_at_most_16_sweeps() {
     assert!(sweeps <= 16, "{sweeps} sweeps");
     assert!(thesis > sweeps, "thesis {thesis} vs clustered {sweeps}");
 }
+
+#[test]
+fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
+    // Between two choices of its closest target a vertex follows the target
+    // it chose, but in the first iteration of a frame it still checks every
+    // bone whose box it is in: pushed into a bone, it switches to it.
+    use sinew_core::solver::stage::{ClosestSchedule, closest_data};
+    let (_, mut solver) = load("t3");
+    for _ in 0..10 {
+        solver.step();
+    }
+    let targets = solver.targets();
+    // Nobody re-chooses in this frame (vertex + frame is never a multiple
+    // of the intervals).
+    let keep = ClosestSchedule {
+        frame: 1,
+        interval: u32::MAX,
+        choose_interval: u32::MAX,
+        feature_contacts: true,
+        active: true,
+        walk: true,
+        substep_start: true,
+        parallel: false,
+    };
+    let mut moved = 0;
+    for m in solver.muscles() {
+        let c = &m.constraints.sliding;
+        for i in 0..c.len() {
+            let chosen = c.target[i] as usize;
+            if chosen >= c.targets || c.rigid[chosen] {
+                continue;
+            }
+            let v = c.particle[i] as usize;
+            for bone in (0..c.targets).filter(|&s| c.rigid[s] && c.rest_outside[i * c.targets + s])
+            {
+                let surface = &targets[m.target_ids[bone]];
+                let hit = surface.closest(m.p[v], None).unwrap();
+                let mut m = m.clone();
+                m.p[v] = hit.point - 2e-3 * hit.normal;
+                let inside = surface.closest(m.p[v], None).unwrap().signed_distance < -1e-3;
+                if !inside || !surface.contains(m.p[v]) {
+                    continue;
+                }
+                closest_data(&mut m, targets, keep);
+                // It now follows a bone: this one, or where two bones meet
+                // one its walk finds it deeper in.
+                let now = m.constraints.sliding.target[i] as usize;
+                assert!(
+                    now < c.targets && c.rigid[now],
+                    "{}: vertex {v} inside bone slot {bone} follows slot {now} (chose {chosen})",
+                    m.name
+                );
+                moved += 1;
+            }
+        }
+    }
+    assert!(
+        moved >= 10,
+        "{moved} vertices following a muscle were pushed into a bone"
+    );
+}

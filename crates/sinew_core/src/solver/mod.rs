@@ -148,19 +148,21 @@ pub struct SolverSettings {
     /// Every this many frames each vertex re-chooses its closest target
     /// among all of its muscle's targets (staggered over vertices, and always
     /// with a full search); in between it follows the target it chose,
-    /// walking over it. A vertex pushed into a bone it does not follow is
-    /// still caught in every iteration by the bone contacts. `1` = every
-    /// frame. Default: `1`. `4` cut T7's closest data from 61 to 49 ms/frame
-    /// (1 thread), but with [`SolverSettings::feature_contacts`] it raised
-    /// T5's worst-frame share of vertices inside a bone from 1.67 to 2.00 %.
+    /// walking over it, and checks only the bones whose boxes it is in (it
+    /// may have entered one). `1` = every frame. Default: `4`. Measured on
+    /// one binary (1 thread; `sinew check`, worst frame, share of vertices
+    /// more than 2 mm inside a bone): `4` against `1` cut T7's closest data
+    /// from 30.1 to 27.0 ms/frame, and T5's penetration from 1.42 to 1.20 %,
+    /// T6's from 2.07 to 1.85 %.
     pub choose_interval: u32,
     /// Later iterations of a frame project each vertex onto the face, edge or
     /// corner of the triangle the walk found (a few loads) instead of
     /// re-projecting onto the triangle. Exact while the vertex stays in that
-    /// feature's region. It cut T7's closest data from 49 to 39 ms/frame
-    /// (1 thread, with `choose_interval: 4`), but raised T5's worst-frame
-    /// share of vertices inside a bone from 1.42 to 1.67 % (both settings
-    /// together: T5 2.00 %, T6 2.61 % against 1.42 and 2.07). Default: `false`.
+    /// feature's region. Default: `true`. With `choose_interval: 4` it cut
+    /// T7's closest data from 27.0 to 14.7 ms/frame (1 thread); the two
+    /// defaults together give T5 1.09 % and T6 1.82 % of vertices inside a
+    /// bone (against 1.42 and 2.07 % with neither; this setting alone: 1.67
+    /// and 2.21 %).
     pub feature_contacts: bool,
     /// Walk over the targets in every iteration. When `false` (default), the
     /// walk runs in the first iteration of a frame and later iterations
@@ -190,8 +192,8 @@ impl Default for SolverSettings {
             projection_order: ConstraintKind::CANONICAL_ORDER.to_vec(),
             timers: true,
             full_search_interval: 16,
-            choose_interval: 1,
-            feature_contacts: false,
+            choose_interval: 4,
+            feature_contacts: true,
             walk_every_iteration: false,
             threads: 1,
             schedule: SweepSchedule::Auto,
@@ -829,7 +831,9 @@ impl Solver {
                         let muscles = &mut self.muscles;
                         let mut plans: Vec<Option<coloring::ColorPlan>> = muscles
                             .iter_mut()
-                            .map(|m| active(m).then(|| coloring::take_plan(m, order, kind)))
+                            .map(|m| {
+                                active(m).then(|| coloring::take_plan(m, order, kind, it == 0))
+                            })
                             .collect();
                         pool.install(|| {
                             use rayon::prelude::*;
@@ -849,7 +853,7 @@ impl Solver {
                     }
                     _ => for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
                         if active(m) {
-                            project_iteration(m, method, order, targets, inv_h2, parallel);
+                            project_iteration(m, method, order, targets, inv_h2, parallel, it == 0);
                         }
                     }),
                 }

@@ -9,7 +9,7 @@
 //! for it in 0..iterations:
 //!     (publish the targeted muscles' snapshots)
 //!     closest_data(m, targets, schedule)
-//!     project_iteration(m, method, order, targets, 1/h², parallel)
+//!     project_iteration(m, method, order, targets, 1/h², parallel, it == 0)
 //! end_substep(m, h, momentum)               v = (p − x)/h, x = p
 //! ```
 //!
@@ -297,15 +297,22 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 point[i] = surface.on_feature(q, triangle[i], barycentric[i], plane[i]);
                 continue;
             }
+            // A vertex that keeps its target still checks, in the first
+            // iteration of a frame, every bone whose box it is in: it may
+            // have entered that bone since it last chose.
+            let bones_only = !choose;
             let order = (first < nt)
                 .then_some(first)
                 .into_iter()
-                .chain((0..nt).filter(move |&s| choose && s != first));
+                .chain((0..nt).filter(move |&s| (choose || search.active) && s != first));
             let full = search.wants(v);
             for slot in order {
                 let cell = &mut warm[i * nt + slot];
                 let last = (*cell != NO_TRIANGLE).then_some(*cell);
                 let surface = self.targets.target(self.target_ids[slot]);
+                if bones_only && slot != first && surface.is_deforming() {
+                    continue;
+                }
                 // The first target searched needs no bound (and no box test).
                 let bound = match best {
                     None => f32::MAX,
@@ -317,6 +324,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         let may_be_inside = lower == 0.0 && !surface.is_deforming();
                         match rank >= 0.0 {
                             _ if may_be_inside => f32::MAX,
+                            _ if bones_only => continue,
                             true if lower >= d => continue,
                             true => d,
                             false => continue,
@@ -372,6 +380,9 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
 /// One iteration's projection of a muscle: every type in `order` but a
 /// trailing Volume, then the bone contacts, then the Volume (which keeps the
 /// volume exact while moving vertices far less than the contacts did).
+/// `substep_start`: the first iteration of a substep, where a coloured
+/// method checks its plan against the muscle's topology (a host may have
+/// edited it since the last step).
 pub fn project_iteration<T: TargetSet + ?Sized>(
     m: &mut Muscle,
     method: SolverMethod,
@@ -379,6 +390,7 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
     targets: &T,
     inv_h2: f32,
     parallel: bool,
+    substep_start: bool,
 ) {
     match method {
         SolverMethod::Sequential => {
@@ -387,7 +399,7 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
         }
         SolverMethod::Colored { .. } | SolverMethod::Hybrid { .. } => {
             let (kind, omega) = plan_kind(method).expect("a coloured method");
-            coloring::project_colored(m, order, kind, inv_h2, omega, parallel);
+            coloring::project_colored(m, order, kind, inv_h2, omega, parallel, substep_start);
             volume_within(m, order, inv_h2);
         }
         SolverMethod::Jacobi { omega } => {

@@ -11,11 +11,13 @@
 //! the only one in the crate allowed `unsafe` — hands each thread a
 //! [`SharedSlice`]: a raw view of the muscle's positions and multipliers.
 //! The views never leave this module and every access is bounds-checked.
-//! The plans come from `coloring::take_plan`, which checks them against the
-//! muscle's current constraint indices ([`ColorPlan::fits`]) and rebuilds a
-//! stale one, under the same `&mut` borrow of the muscle that the sweep then
-//! takes: nothing can change the indices in between. The sweeps re-check the
-//! counts.
+//! Positions are written only at the particles the plan holds for each
+//! constraint (its own copy, the one its constructor checked), and each
+//! multiplier belongs to one planned constraint, so no muscle edit can make
+//! two threads write one place: a plan that no longer fits its muscle
+//! ([`ColorPlan::fits`], checked in the first iteration of every substep)
+//! solves the old topology until it is rebuilt, and the sweeps re-check the
+//! counts the views' lengths come from.
 #![allow(unsafe_code)]
 
 use super::coloring::{ColorPlan, PlannedConstraint};
