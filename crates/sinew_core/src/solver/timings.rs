@@ -1,5 +1,6 @@
 //! Per-block timers (the thesis' execution blocks BE1–BE8, SPEC §10.3).
 
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 /// Wall time spent in each block during the last step.
@@ -82,5 +83,82 @@ impl Stopwatch {
     /// Clock reads so far.
     pub(crate) fn reads(&self) -> u32 {
         self.reads
+    }
+}
+
+impl Stopwatch {
+    /// Splits the time since the previous lap between `slots` in
+    /// proportion to `shares` (evenly when every share is zero), and counts
+    /// `reads` clock reads made elsewhere (by a [`TaskSplit`]).
+    pub(crate) fn lap_split<const N: usize>(
+        &mut self,
+        slots: [&mut Duration; N],
+        shares: [Duration; N],
+        reads: u32,
+    ) {
+        let mut pass = Duration::ZERO;
+        self.lap(&mut pass);
+        self.reads += reads;
+        let total: Duration = shares.iter().sum();
+        for (slot, share) in slots.into_iter().zip(shares) {
+            *slot += if total.is_zero() {
+                pass / N as u32
+            } else {
+                pass.mul_f64(share.as_secs_f64() / total.as_secs_f64())
+            };
+        }
+    }
+}
+
+/// Time that the tasks of one parallel pass spend in each of two parts,
+/// summed over tasks and threads; the pass's wall time is then split in
+/// that proportion ([`Stopwatch::lap_split`]). Nothing is read when off.
+pub(crate) struct TaskSplit {
+    enabled: bool,
+    nanos: [AtomicU64; 2],
+    reads: AtomicU32,
+}
+
+impl TaskSplit {
+    pub(crate) fn new(enabled: bool) -> Self {
+        Self {
+            enabled,
+            nanos: [AtomicU64::new(0), AtomicU64::new(0)],
+            reads: AtomicU32::new(0),
+        }
+    }
+
+    /// The start of a task's first part (`None` when off).
+    #[inline]
+    pub(crate) fn start(&self) -> Option<Instant> {
+        self.enabled.then(|| {
+            self.reads.fetch_add(1, Ordering::Relaxed);
+            Instant::now()
+        })
+    }
+
+    /// Adds the time since `since` to part `part`; returns now, the start
+    /// of the next part.
+    #[inline]
+    pub(crate) fn lap(&self, since: Option<Instant>, part: usize) -> Option<Instant> {
+        since.map(|since| {
+            let now = Instant::now();
+            let spent = (now - since).as_nanos() as u64;
+            self.nanos[part].fetch_add(spent, Ordering::Relaxed);
+            self.reads.fetch_add(1, Ordering::Relaxed);
+            now
+        })
+    }
+
+    /// The time spent in each part, over every task.
+    pub(crate) fn shares(&self) -> [Duration; 2] {
+        self.nanos
+            .each_ref()
+            .map(|n| Duration::from_nanos(n.load(Ordering::Relaxed)))
+    }
+
+    /// Clock reads made.
+    pub(crate) fn reads(&self) -> u32 {
+        self.reads.load(Ordering::Relaxed)
     }
 }
