@@ -669,12 +669,23 @@ impl Solver {
     /// Publishes the targeted muscles' predictions; `first_iteration` also
     /// updates their normals and (when the slack asks for it) refits their
     /// BVHs: that iteration walks and runs the full searches.
+    /// Targets are independent, so they are published in parallel on the
+    /// pool.
     fn publish_muscles(&mut self, first_iteration: bool) {
-        for &ti in &self.published {
-            let t = &mut self.targets[ti];
-            if let TargetSource::Muscle(m) = t.source {
-                stage::publish(t, &self.muscles[m], first_iteration);
+        use rayon::prelude::*;
+        let (published, muscles) = (&self.published, &self.muscles);
+        let publish = |(ti, t): (usize, &mut TargetSurface)| {
+            if let TargetSource::Muscle(m) = t.source
+                && published.binary_search(&ti).is_ok()
+            {
+                stage::publish(t, &muscles[m], first_iteration);
             }
+        };
+        match &self.pool {
+            Some((_, pool)) if published.len() > 1 => pool.install(|| {
+                self.targets.par_iter_mut().enumerate().for_each(publish);
+            }),
+            _ => self.targets.iter_mut().enumerate().for_each(publish),
         }
     }
 
@@ -751,11 +762,12 @@ impl Solver {
                 }
             });
         }
-        for m in &mut self.muscles {
-            if let Some(w) = m.update_activation() {
-                self.warnings.push(w);
-            }
-        }
+        let warnings = map_muscles(
+            self.pool.as_ref(),
+            &mut self.muscles,
+            Muscle::update_activation,
+        );
+        self.warnings.extend(warnings.into_iter().flatten());
         self.prepare();
         clock.lap(&mut timings.read_inputs);
         let substeps = self.settings.substeps.max(1);
@@ -775,16 +787,14 @@ impl Solver {
             }
             let poses = &self.substep_poses;
             let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
-            for m in &mut self.muscles {
+            for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
                 update_attachment_goals(m, &pose);
-            }
+            });
             clock.lap(&mut timings.update_targets);
             let damping_exp = 1.0 / substeps as f32;
-            self.substep_momentum.clear();
-            for m in &mut self.muscles {
-                let momentum = begin_substep(m, gravity, h, damping_exp);
-                self.substep_momentum.push(momentum);
-            }
+            self.substep_momentum = map_muscles(self.pool.as_ref(), &mut self.muscles, |m| {
+                begin_substep(m, gravity, h, damping_exp)
+            });
             clock.lap(&mut timings.integrate);
             for it in 0..iterations {
                 let full_searches = it == 0 && s == 0;
@@ -885,8 +895,16 @@ impl Solver {
                     }
                 }
             }
-            for (m, &momentum) in self.muscles.iter_mut().zip(&self.substep_momentum) {
+            let momenta = &self.substep_momentum;
+            let end = |(m, &momentum): (&mut Muscle, &Option<RigidMomentum>)| {
                 end_substep(m, h, momentum);
+            };
+            match &self.pool {
+                Some((_, pool)) => pool.install(|| {
+                    use rayon::prelude::*;
+                    self.muscles.par_iter_mut().zip(momenta).for_each(end);
+                }),
+                None => self.muscles.iter_mut().zip(momenta).for_each(end),
             }
             clock.lap(&mut timings.apply);
         }
@@ -921,6 +939,22 @@ fn global_sweeps_pay(muscles: &[Muscle], threads: u32) -> bool {
         .max()
         .unwrap_or(16);
     largest > total / threads.max(1) + SWEEP_SYNC_CONSTRAINTS * sweeps
+}
+
+/// `f` of every muscle, in muscle order, computed on the pool's threads
+/// when there is one.
+fn map_muscles<R: Send>(
+    pool: Option<&(u32, rayon::ThreadPool)>,
+    muscles: &mut [Muscle],
+    f: impl Fn(&mut Muscle) -> R + Sync + Send,
+) -> Vec<R> {
+    use rayon::prelude::*;
+    match pool {
+        Some((_, pool)) if muscles.len() > 1 => {
+            pool.install(|| muscles.par_iter_mut().map(&f).collect())
+        }
+        _ => muscles.iter_mut().map(f).collect(),
+    }
 }
 
 /// Runs `f` on every muscle, on the pool's threads when there is one.
