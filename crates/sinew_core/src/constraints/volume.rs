@@ -84,6 +84,78 @@ pub struct VolumeConstraint {
     pub gradient: Vec<Vec3A>,
     /// Workspace: surface positions relative to the first one.
     pub relative: Vec<Vec3A>,
+    /// Large meshes ([`VolumeConstraint::BLOCKED_POLYGONS`]): CSR offsets of
+    /// the polygons around each surface vertex (built on first use).
+    pub vertex_polygon_offsets: Vec<u32>,
+    /// Large meshes: `(polygon, slot of the vertex in it)` around each
+    /// surface vertex, in polygon order.
+    pub vertex_polygons: Vec<(u32, u32)>,
+    /// Large meshes, workspace: each polygon's centroid and area share.
+    pub polygon_terms: Vec<(Vec3A, Vec3A)>,
+}
+
+/// A polygon's part of `6V` and the terms its vertices' gradients share:
+/// `(A·m, m, A/K)` with `A = Σ p_k × p_k+1` and `m` the centroid (a
+/// triangle needs neither term: see [`gradient_part`]).
+#[inline(always)]
+fn polygon_part(poly: &[u32], r: &[Vec3A]) -> (f32, Vec3A, Vec3A) {
+    match *poly {
+        [a, b, c] => {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            (r[a].dot(r[b].cross(r[c])), Vec3A::ZERO, Vec3A::ZERO)
+        }
+        [a, b, c, d] => {
+            let (pa, pb, pc, pd) = (r[a as usize], r[b as usize], r[c as usize], r[d as usize]);
+            let m = (pa + pb + pc + pd) * 0.25;
+            // Σ p_k × p_k+1 of a quad is (c − a) × (d − b).
+            let area = (pc - pa).cross(pd - pb);
+            (area.dot(m), m, area * 0.25)
+        }
+        _ => {
+            let k = poly.len();
+            let at = |j: usize| r[poly[j % k] as usize];
+            let m = poly.iter().map(|&i| r[i as usize]).sum::<Vec3A>() / k as f32;
+            let area = (0..k).map(|j| at(j).cross(at(j + 1))).sum::<Vec3A>();
+            (area.dot(m), m, area / k as f32)
+        }
+    }
+}
+
+/// `6 ∂V/∂p` of the vertex in slot `j` of `poly` (before the sum over
+/// polygons): `p_j+1 × p_j+2` for a triangle, `m × (p_j−1 − p_j+1) + A/K`
+/// otherwise, with `(m, share)` from [`polygon_part`].
+#[inline(always)]
+fn gradient_part(poly: &[u32], j: usize, r: &[Vec3A], m: Vec3A, share: Vec3A) -> Vec3A {
+    let k = poly.len();
+    // Slots j − 1 and j + 1, without a division for the usual sizes.
+    let (prev, next) = match k {
+        3 => ([2, 0, 1][j], [1, 2, 0][j]),
+        4 => ((j + 3) & 3, (j + 1) & 3),
+        _ => ((j + k - 1) % k, (j + 1) % k),
+    };
+    let at = |slot: usize| r[poly[slot] as usize];
+    if k == 3 {
+        // p_j+1 × p_j+2, and j + 2 is j − 1.
+        at(next).cross(at(prev))
+    } else {
+        m.cross(at(prev) - at(next)) + share
+    }
+}
+
+/// Adds every vertex's [`gradient_part`] of `poly` to `g`, with the
+/// polygon's size known to the compiler for triangles and quads.
+#[inline(always)]
+fn scatter_polygon(poly: &[u32], r: &[Vec3A], m: Vec3A, share: Vec3A, g: &mut [Vec3A]) {
+    let mut add = |poly: &[u32]| {
+        for (j, &v) in poly.iter().enumerate() {
+            g[v as usize] += gradient_part(poly, j, r, m, share);
+        }
+    };
+    match poly {
+        [_, _, _] => add(&poly[..3]),
+        [_, _, _, _] => add(&poly[..4]),
+        _ => add(poly),
+    }
 }
 
 impl VolumeConstraint {
@@ -103,6 +175,23 @@ impl VolumeConstraint {
 
     /// Fills `self.gradient` with `∇C` and returns `(C, Σ w |∇C|²)`.
     pub fn evaluate(&mut self, p: &[Vec3], w: &[f32]) -> (f64, f64) {
+        self.evaluate_with(p, w, false)
+    }
+
+    /// Meshes with at least this many polygons are evaluated in blocks:
+    /// per polygon block its part of the volume and the terms its vertices
+    /// share, then per vertex block the gradient gathered from the polygons
+    /// around each vertex, and the sums added block by block. The blocks
+    /// run in parallel when asked, with the same bits on any thread count;
+    /// smaller meshes are a few µs of serial work.
+    pub const BLOCKED_POLYGONS: usize = 4096;
+
+    /// Polygons or vertices per block of the blocked evaluation.
+    pub const BLOCK: usize = 1024;
+
+    /// [`VolumeConstraint::evaluate`], the blocks of a large mesh on the
+    /// current rayon pool when `parallel` (same result).
+    pub fn evaluate_with(&mut self, p: &[Vec3], w: &[f32], parallel: bool) -> (f64, f64) {
         let surface = &p[..self.surface_count];
         // Any point on the mesh keeps the relative coordinates as small as
         // the bounding-box centre would (within 2×) and needs no extra pass.
@@ -112,48 +201,20 @@ impl VolumeConstraint {
             .extend(surface.iter().map(|&x| Vec3A::from(x) - o));
         self.gradient.clear();
         self.gradient.resize(self.surface_count, Vec3A::ZERO);
-        let (r, g) = (&self.relative, &mut self.gradient);
         // Per polygon with vertices p_k (relative to o), centroid m and
         // A = Σ p_k × p_k+1:  6V = A·m  and  6 ∂V/∂p_k = m × (p_k−1 − p_k+1) + A/K.
         // Triple products are formed in f32 (small, centred coordinates) and
         // summed in f64.
+        if self.polygon_offsets.len() > Self::BLOCKED_POLYGONS {
+            return self.evaluate_blocked(w, parallel);
+        }
+        let (r, g) = (&self.relative, &mut self.gradient);
         let mut six_v = 0.0f64;
-        for w in self.polygon_offsets.windows(2) {
-            let poly = &self.polygon_indices[w[0] as usize..w[1] as usize];
-            match *poly {
-                [a, b, c] => {
-                    let (a, b, c) = (a as usize, b as usize, c as usize);
-                    let bc = r[b].cross(r[c]);
-                    six_v += r[a].dot(bc) as f64;
-                    g[a] += bc;
-                    g[b] += r[c].cross(r[a]);
-                    g[c] += r[a].cross(r[b]);
-                }
-                [a, b, c, d] => {
-                    let (a, b, c, d) = (a as usize, b as usize, c as usize, d as usize);
-                    let (pa, pb, pc, pd) = (r[a], r[b], r[c], r[d]);
-                    let m = (pa + pb + pc + pd) * 0.25;
-                    // Σ p_k × p_k+1 of a quad is (c − a) × (d − b).
-                    let area = (pc - pa).cross(pd - pb);
-                    six_v += area.dot(m) as f64;
-                    let share = area * 0.25;
-                    g[a] += m.cross(pd - pb) + share;
-                    g[b] += m.cross(pa - pc) + share;
-                    g[c] += m.cross(pb - pd) + share;
-                    g[d] += m.cross(pc - pa) + share;
-                }
-                _ => {
-                    let k = poly.len();
-                    let at = |j: usize| r[poly[j % k] as usize];
-                    let m = poly.iter().map(|&i| r[i as usize]).sum::<Vec3A>() / k as f32;
-                    let area = (0..k).map(|j| at(j).cross(at(j + 1))).sum::<Vec3A>();
-                    six_v += area.dot(m) as f64;
-                    let share = area / k as f32;
-                    for j in 0..k {
-                        g[poly[j] as usize] += m.cross(at(j + k - 1) - at(j + 1)) + share;
-                    }
-                }
-            }
+        for o in self.polygon_offsets.windows(2) {
+            let poly = &self.polygon_indices[o[0] as usize..o[1] as usize];
+            let (six, m, share) = polygon_part(poly, r);
+            six_v += six as f64;
+            scatter_polygon(poly, r, m, share, g);
         }
         let mut wg = 0.0f64;
         for (g, &wi) in self.gradient.iter_mut().zip(w) {
@@ -163,6 +224,97 @@ impl VolumeConstraint {
         (six_v / 6.0 - self.ratio as f64 * self.rest_volume, wg)
     }
 
+    /// The blocked evaluation (see [`VolumeConstraint::BLOCKED_POLYGONS`]);
+    /// `self.relative` is filled.
+    fn evaluate_blocked(&mut self, w: &[f32], parallel: bool) -> (f64, f64) {
+        use rayon::prelude::*;
+        if self.vertex_polygon_offsets.len() != self.surface_count + 1 {
+            self.build_vertex_polygons();
+        }
+        let (offsets, indices, r) = (&self.polygon_offsets, &self.polygon_indices, &self.relative);
+        let polygons = offsets.len() - 1;
+        self.polygon_terms
+            .resize(polygons, (Vec3A::ZERO, Vec3A::ZERO));
+        // Polygon blocks: their part of 6V, and the shared terms.
+        let polygon_block = |(b, terms): (usize, &mut [(Vec3A, Vec3A)])| {
+            let mut six_v = 0.0f64;
+            for (k, term) in terms.iter_mut().enumerate() {
+                let i = b * Self::BLOCK + k;
+                let poly = &indices[offsets[i] as usize..offsets[i + 1] as usize];
+                let (six, m, share) = polygon_part(poly, r);
+                six_v += six as f64;
+                *term = (m, share);
+            }
+            six_v
+        };
+        let parts: Vec<f64> = if parallel {
+            let blocks = self.polygon_terms.par_chunks_mut(Self::BLOCK);
+            blocks.enumerate().map(polygon_block).collect()
+        } else {
+            let blocks = self.polygon_terms.chunks_mut(Self::BLOCK);
+            blocks.enumerate().map(polygon_block).collect()
+        };
+        // Block sums added in block order: the same bits on any thread count.
+        let six_v: f64 = parts.iter().sum();
+        // Vertex blocks: each vertex gathers its gradient from its polygons,
+        // in polygon order (the bits of the polygon-by-polygon sum).
+        let (around_offsets, around, terms) = (
+            &self.vertex_polygon_offsets,
+            &self.vertex_polygons,
+            &self.polygon_terms,
+        );
+        let vertex_block = |(b, g): (usize, &mut [Vec3A])| {
+            let mut wg = 0.0f64;
+            for (k, g) in g.iter_mut().enumerate() {
+                let v = b * Self::BLOCK + k;
+                let mut sum = Vec3A::ZERO;
+                for &(i, j) in &around[around_offsets[v] as usize..around_offsets[v + 1] as usize] {
+                    let i = i as usize;
+                    let poly = &indices[offsets[i] as usize..offsets[i + 1] as usize];
+                    let (m, share) = terms[i];
+                    sum += gradient_part(poly, j as usize, r, m, share);
+                }
+                *g = sum / 6.0;
+                wg += (w[v] * g.length_squared()) as f64;
+            }
+            wg
+        };
+        let parts: Vec<f64> = if parallel {
+            let blocks = self.gradient.par_chunks_mut(Self::BLOCK);
+            blocks.enumerate().map(vertex_block).collect()
+        } else {
+            let blocks = self.gradient.chunks_mut(Self::BLOCK);
+            blocks.enumerate().map(vertex_block).collect()
+        };
+        let wg: f64 = parts.iter().sum();
+        (six_v / 6.0 - self.ratio as f64 * self.rest_volume, wg)
+    }
+
+    /// Fills the polygons-around-each-vertex table.
+    fn build_vertex_polygons(&mut self) {
+        let n = self.surface_count;
+        let mut offsets = vec![0u32; n + 1];
+        for &v in &self.polygon_indices {
+            offsets[v as usize + 1] += 1;
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut around = vec![(0u32, 0u32); self.polygon_indices.len()];
+        for (i, o) in self.polygon_offsets.windows(2).enumerate() {
+            for (j, &v) in self.polygon_indices[o[0] as usize..o[1] as usize]
+                .iter()
+                .enumerate()
+            {
+                around[fill[v as usize] as usize] = (i as u32, j as u32);
+                fill[v as usize] += 1;
+            }
+        }
+        self.vertex_polygon_offsets = offsets;
+        self.vertex_polygons = around;
+    }
+
     /// One projection. Volume is cubic in the positions, so a large violation
     /// is not removed by one linearised step; the projection takes up to
     /// [`VolumeConstraint::MAX_NEWTON_STEPS`] Newton steps, stopping as soon as
@@ -170,13 +322,21 @@ impl VolumeConstraint {
     /// residual, quadratic in that violation (≈ 1e-4), is negligible. Usually
     /// that is one step.
     pub fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        self.solve_with(p, w, inv_dt2, false);
+    }
+
+    /// [`VolumeConstraint::solve`], a large mesh's evaluation and update in
+    /// blocks on the current rayon pool when `parallel` (same result).
+    pub fn solve_with(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32, parallel: bool) {
+        use rayon::prelude::*;
+        let parallel = parallel && self.polygon_offsets.len() > Self::BLOCKED_POLYGONS;
         let alpha = self.compliance * inv_dt2;
         let scale = self.rest_volume.abs().max(f64::MIN_POSITIVE);
         let mut limit = Self::MAX_NEWTON_STEPS;
         let mut step = 0;
         while step < limit {
             step += 1;
-            let (c, wg) = self.evaluate(p, w);
+            let (c, wg) = self.evaluate_with(p, w, parallel);
             if (c / scale).abs() > Self::FAR {
                 // Far from the target (e.g. after contacts moved many
                 // vertices): keep stepping until close.
@@ -187,8 +347,17 @@ impl VolumeConstraint {
                 break;
             }
             self.lambda += dl;
-            for (i, g) in self.gradient.iter().enumerate() {
-                p[i] += Vec3::from(*g * (w[i] * dl));
+            let update = |(p, (g, w)): (&mut Vec3, (&Vec3A, &f32))| {
+                *p += Vec3::from(*g * (*w * dl));
+            };
+            let (p, g) = (&mut p[..self.surface_count], &self.gradient);
+            if parallel {
+                let n = self.surface_count;
+                let blocks = p.par_chunks_mut(Self::BLOCK).zip(g.par_chunks(Self::BLOCK));
+                let blocks = blocks.zip(w[..n].par_chunks(Self::BLOCK));
+                blocks.for_each(|((p, g), w)| p.iter_mut().zip(g.iter().zip(w)).for_each(update));
+            } else {
+                p.iter_mut().zip(g.iter().zip(w)).for_each(update);
             }
             if (c / scale).abs() < 1e-2 {
                 break;
@@ -208,4 +377,116 @@ impl VolumeConstraint {
     /// Upper bound on Newton steps when the violation is above
     /// [`VolumeConstraint::FAR`].
     pub const MAX_NEWTON_STEPS_FAR: usize = 8;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::primitives::MeshGenerator;
+
+    /// A closed quad mesh (with triangle fans at the poles) large enough for
+    /// the blocked evaluation, its vertices displaced so no two polygons are
+    /// alike, and its Volume constraint.
+    fn large_volume() -> (VolumeConstraint, Vec<Vec3>, Vec<f32>) {
+        let mesh = MeshGenerator::Ellipsoid {
+            center: Vec3::new(0.3, -0.2, 0.1),
+            radii: Vec3::new(0.05, 0.02, 0.025),
+            segments: 96,
+            stacks: 48,
+        }
+        .build("large")
+        .unwrap();
+        let n = mesh.positions.len();
+        let p: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| {
+                let k = i as f32;
+                x + 1e-3 * Vec3::new((k * 1.3).sin(), (k * 2.1).cos(), (k * 0.7).sin())
+            })
+            .collect();
+        let w: Vec<f32> = (0..n).map(|i| 1.0 + (i % 7) as f32 * 0.1).collect();
+        let volume = VolumeConstraint {
+            rest_volume: mesh.volume(),
+            ratio: 1.1,
+            surface_count: n,
+            polygon_offsets: mesh.polygon_offsets,
+            polygon_indices: mesh.polygon_indices,
+            ..Default::default()
+        };
+        assert!(volume.polygon_offsets.len() > VolumeConstraint::BLOCKED_POLYGONS);
+        (volume, p, w)
+    }
+
+    fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    #[test]
+    fn blocked_evaluation_is_the_polygon_by_polygon_sum() {
+        let (mut v, p, w) = large_volume();
+        let (c, wg) = v.evaluate(&p, &w);
+        // The reference: every polygon's part added to its vertices in
+        // polygon order (what smaller meshes do).
+        let r = &v.relative;
+        let mut g = vec![Vec3A::ZERO; v.surface_count];
+        let mut six_v = 0.0f64;
+        for o in v.polygon_offsets.windows(2) {
+            let poly = &v.polygon_indices[o[0] as usize..o[1] as usize];
+            let (six, m, share) = polygon_part(poly, r);
+            six_v += six as f64;
+            scatter_polygon(poly, r, m, share, &mut g);
+        }
+        for (i, (a, b)) in v.gradient.iter().zip(&g).enumerate() {
+            assert_eq!(*a, *b / 6.0, "vertex {i}");
+        }
+        let c_ref = six_v / 6.0 - v.ratio as f64 * v.rest_volume;
+        assert!((c - c_ref).abs() <= 1e-12 * v.rest_volume, "{c} {c_ref}");
+        assert!(wg > 0.0);
+        // And the gradient is the volume's: central differences.
+        for &i in &[0usize, 17, 2000, v.surface_count - 1] {
+            for axis in 0..3 {
+                let (mut plus, mut minus) = (p.clone(), p.clone());
+                let h = 1e-4f32;
+                plus[i][axis] += h;
+                minus[i][axis] -= h;
+                let fd = (v.volume(&plus) - v.volume(&minus)) / (2.0 * h as f64);
+                let analytic = v.gradient[i][axis] as f64;
+                assert!(
+                    (fd - analytic).abs() <= 1e-3 * analytic.abs().max(1e-6),
+                    "vertex {i} axis {axis}: {fd} vs {analytic}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn parallel_volume_gives_the_same_bits_on_any_thread_count() {
+        let run = |threads: usize| {
+            in_pool(threads, || {
+                let (mut v, mut p, w) = large_volume();
+                let first = v.evaluate_with(&p, &w, true);
+                v.solve_with(&mut p, &w, 3600.0, true);
+                (first, v.gradient.clone(), v.lambda, p)
+            })
+        };
+        let serial = {
+            let (mut v, mut p, w) = large_volume();
+            let first = v.evaluate_with(&p, &w, false);
+            v.solve_with(&mut p, &w, 3600.0, false);
+            (first, v.gradient.clone(), v.lambda, p)
+        };
+        for threads in [1, 2, 8] {
+            assert!(run(threads) == serial, "{threads} threads");
+        }
+        // The projection moved the volume to its target.
+        let (v, _, _) = large_volume();
+        let after = v.volume(&serial.3) / (v.ratio as f64 * v.rest_volume);
+        assert!((after - 1.0).abs() < 1e-3, "{after}");
+    }
 }

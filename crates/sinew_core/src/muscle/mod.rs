@@ -496,6 +496,7 @@ impl Muscle {
                 lambda: 0.0,
                 gradient: Vec::with_capacity(n),
                 relative: Vec::with_capacity(n),
+                ..Default::default()
             });
         }
     }

@@ -853,8 +853,8 @@ impl Solver {
                                     if let Some(mut plan) = plan.take() {
                                         coloring::project_tail(m, &mut plan, inv_h2, omega, true);
                                         m.colors = Some(plan);
-                                        stage::volume_within(m, order, inv_h2);
-                                        stage::finish_iteration(m, order, targets, inv_h2);
+                                        stage::volume_within(m, order, inv_h2, true);
+                                        stage::finish_iteration(m, order, targets, inv_h2, true);
                                     }
                                 });
                         });

@@ -400,7 +400,7 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
         SolverMethod::Colored { .. } | SolverMethod::Hybrid { .. } => {
             let (kind, omega) = plan_kind(method).expect("a coloured method");
             coloring::project_colored(m, order, kind, inv_h2, omega, parallel, substep_start);
-            volume_within(m, order, inv_h2);
+            volume_within(m, order, inv_h2, parallel);
         }
         SolverMethod::Jacobi { omega } => {
             let mut state = m
@@ -409,10 +409,10 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
                 .unwrap_or_else(|| jacobi::JacobiState::new(m, order));
             jacobi::project_jacobi(m, &mut state, inv_h2, omega, parallel);
             m.jacobi = Some(state);
-            volume_within(m, order, inv_h2);
+            volume_within(m, order, inv_h2, parallel);
         }
     }
-    finish_iteration(m, order, targets, inv_h2);
+    finish_iteration(m, order, targets, inv_h2, parallel);
 }
 
 /// The colour plan a method runs on and its Jacobi ω (1 without a tail);
@@ -440,23 +440,33 @@ fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
 
 /// After a coloured or Jacobi sweep (which leave Volume out): the Volume,
 /// when `order` has it anywhere but last.
-pub(super) fn volume_within(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
+pub(super) fn volume_within(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32, parallel: bool) {
     if !split_volume(order).1 && order.contains(&ConstraintKind::Volume) {
-        project(m, &[ConstraintKind::Volume], inv_h2);
+        project_volume(m, inv_h2, parallel);
     }
 }
 
 /// The end of an iteration's projection: the bone contacts, then the Volume
-/// when `order` ends with it.
+/// when `order` ends with it. `parallel`: a large muscle's Volume runs as a
+/// parallel reduction on the current rayon pool (same result).
 pub fn finish_iteration<T: TargetSet + ?Sized>(
     m: &mut Muscle,
     order: &[ConstraintKind],
     targets: &T,
     inv_h2: f32,
+    parallel: bool,
 ) {
     bone_contacts(m, targets);
     if split_volume(order).1 {
-        project(m, &[ConstraintKind::Volume], inv_h2);
+        project_volume(m, inv_h2, parallel);
+    }
+}
+
+/// Projects the Volume constraint of `m`, if it has one (a large mesh's
+/// evaluation as a parallel reduction when `parallel`, same result).
+fn project_volume(m: &mut Muscle, inv_h2: f32, parallel: bool) {
+    if let Some(v) = &mut m.constraints.volume {
+        v.solve_with(&mut m.p, &m.w, inv_h2, parallel);
     }
 }
 
