@@ -262,6 +262,11 @@ pub struct Muscle {
     /// 1-Lipschitz in the vertex position, so while the vertex stays within
     /// that distance of that point it cannot have entered the bone.
     pub clearance: Vec<glam::Vec4>,
+    /// Bone contacts' margin per Sliding constraint within a substep (bones
+    /// do not move between its iterations): where the vertex was in the
+    /// world at the substep's first check, and how far it can move from
+    /// there before one of its `clearance` cells needs a check.
+    pub bone_margin: Vec<glam::Vec4>,
     /// Per-vertex maps given at build time.
     pub maps: VertexMaps,
     /// Activation was outside [0, 1] and has been reported.
@@ -419,6 +424,7 @@ impl Muscle {
             constraints: MuscleConstraints::default(),
             warm: Vec::new(),
             clearance: Vec::new(),
+            bone_margin: Vec::new(),
             maps,
             activation_reported: false,
             colors: None,

@@ -854,7 +854,14 @@ impl Solver {
                                         coloring::project_tail(m, &mut plan, inv_h2, omega, true);
                                         m.colors = Some(plan);
                                         stage::volume_within(m, order, inv_h2, true);
-                                        stage::finish_iteration(m, order, targets, inv_h2, true);
+                                        stage::finish_iteration(
+                                            m,
+                                            order,
+                                            targets,
+                                            inv_h2,
+                                            true,
+                                            it == 0,
+                                        );
                                     }
                                 });
                         });

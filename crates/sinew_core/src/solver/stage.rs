@@ -412,7 +412,7 @@ pub fn project_iteration<T: TargetSet + ?Sized>(
             volume_within(m, order, inv_h2, parallel);
         }
     }
-    finish_iteration(m, order, targets, inv_h2, parallel);
+    finish_iteration(m, order, targets, inv_h2, parallel, substep_start);
 }
 
 /// The colour plan a method runs on and its Jacobi ω (1 without a tail);
@@ -455,8 +455,9 @@ pub fn finish_iteration<T: TargetSet + ?Sized>(
     targets: &T,
     inv_h2: f32,
     parallel: bool,
+    substep_start: bool,
 ) {
-    bone_contacts(m, targets);
+    bone_contacts(m, targets, substep_start);
     if split_volume(order).1 {
         project_volume(m, inv_h2, parallel);
     }
@@ -476,18 +477,31 @@ fn project_volume(m: &mut Muscle, inv_h2: f32, parallel: bool) {
 /// way, whatever the soft constraints solved after Sliding did. Each bone is
 /// checked only for vertices inside its bounding box, from the last closest
 /// triangle (a walk), and not at all while the vertex stays within its last
-/// known clearance of where it had it ([`Muscle::clearance`]).
-pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
+/// known clearance of where it had it ([`Muscle::clearance`]). Bones do not
+/// move within a substep, so after its first iteration (`substep_start`) a
+/// vertex that stayed within the smallest of its cells' remaining clearances
+/// ([`Muscle::bone_margin`]) skips every cell at once: the cells would all
+/// have been skipped.
+pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T, substep_start: bool) {
     let nt = m.target_ids.len();
     let c = &m.constraints.sliding;
     if nt == 0 || !c.rigid.iter().any(|&r| r) {
         return;
+    }
+    if m.bone_margin.len() != c.len() {
+        m.bone_margin = vec![Vec4::ZERO; c.len()];
     }
     for i in 0..c.len() {
         let v = c.particle[i] as usize;
         if m.w[v] == 0.0 {
             continue;
         }
+        let anchor = m.bone_margin[i];
+        if !substep_start && m.p[v].distance_squared(anchor.truncate()) < anchor.w * anchor.w {
+            continue;
+        }
+        // The smallest remaining clearance over this vertex's bones.
+        let mut margin = f32::INFINITY;
         for slot in (0..nt).filter(|&s| c.rigid[s]) {
             let cell = i * nt + slot;
             if !c.rest_outside[cell] {
@@ -496,12 +510,15 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
             let target = targets.target(m.target_ids[slot]);
             let local = target.to_local(m.p[v]);
             let known = m.clearance[cell];
-            if local.distance_squared(known.truncate()) < known.w * known.w {
+            let moved2 = local.distance_squared(known.truncate());
+            if moved2 < known.w * known.w {
+                margin = margin.min(known.w - moved2.sqrt());
                 continue;
             }
             let lower = target.lower_bound_local(local);
             if lower > 0.0 {
                 m.clearance[cell] = local.extend(lower);
+                margin = margin.min(lower);
                 continue;
             }
             let last = &mut m.warm[cell];
@@ -510,6 +527,7 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
                 NO_TRIANGLE => target.closest_within(q, None, f32::INFINITY),
                 t => target.walk(q, t),
             };
+            margin = 0.0;
             if let Some(hit) = hit {
                 *last = hit.triangle;
                 if hit.signed_distance < 0.0 {
@@ -520,6 +538,14 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
                 }
             }
         }
+        // A little less than the exact margin, so that rounding never skips
+        // a cell the per-cell test would have checked.
+        let margin = if margin.is_finite() {
+            (margin * (1.0 - 1e-3) - 1e-6).max(0.0)
+        } else {
+            f32::INFINITY
+        };
+        m.bone_margin[i] = m.p[v].extend(margin);
     }
 }
 
@@ -560,6 +586,7 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
     m.jacobi = None;
     m.warm = vec![NO_TRIANGLE; n * nt];
     m.clearance = vec![Vec4::ZERO; n * nt];
+    m.bone_margin = vec![Vec4::ZERO; n];
     if nt == 0 {
         return;
     }
