@@ -14,15 +14,38 @@ use glam::{Vec3, Vec3A};
 /// Most triangles in a leaf.
 pub const LEAF_SIZE: usize = 4;
 
+/// A box and its contents, 32 bytes (two to a cache line): the full
+/// searches are bound by loading nodes.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 struct Node {
-    min: Vec3A,
-    max: Vec3A,
+    min: Vec3,
     /// Leaf: first slot in `order`. Inner: index of the left child (the right
     /// child follows it).
     start: u32,
+    max: Vec3,
     /// Leaf: number of triangles (≥ 1). Inner: 0.
     count: u32,
+}
+
+impl Node {
+    /// The box corners, for SIMD arithmetic.
+    #[inline(always)]
+    fn corners(&self) -> (Vec3A, Vec3A) {
+        (Vec3A::from(self.min), Vec3A::from(self.max))
+    }
+
+    /// Squared distance from `q` to the box grown by `slack`.
+    #[inline(always)]
+    fn distance_squared(&self, q: Vec3A, slack: f32) -> f32 {
+        let (min, max) = self.corners();
+        let outside = (min - q).max(q - max).max(Vec3A::ZERO);
+        if slack == 0.0 {
+            outside.length_squared()
+        } else {
+            (outside.length() - slack).max(0.0).powi(2)
+        }
+    }
 }
 
 /// Bounding-volume hierarchy over triangles (see the module docs).
@@ -60,8 +83,8 @@ impl TriangleBvh {
             })
             .collect();
         bvh.nodes.push(Node {
-            min: Vec3A::ZERO,
-            max: Vec3A::ZERO,
+            min: Vec3::ZERO,
+            max: Vec3::ZERO,
             start: 0,
             count: triangles.len() as u32,
         });
@@ -96,8 +119,8 @@ impl TriangleBvh {
                     (start + half as u32, count - half as u32),
                 ] {
                     bvh.nodes.push(Node {
-                        min: Vec3A::ZERO,
-                        max: Vec3A::ZERO,
+                        min: Vec3::ZERO,
+                        max: Vec3::ZERO,
                         start: s,
                         count: c,
                     });
@@ -123,10 +146,11 @@ impl TriangleBvh {
                     )
             } else {
                 let (l, r) = (self.nodes[start as usize], self.nodes[start as usize + 1]);
-                (l.min.min(r.min), l.max.max(r.max))
+                let ((lmin, lmax), (rmin, rmax)) = (l.corners(), r.corners());
+                (lmin.min(rmin), lmax.max(rmax))
             };
-            self.nodes[i].min = min;
-            self.nodes[i].max = max;
+            self.nodes[i].min = min.into();
+            self.nodes[i].max = max.into();
         }
     }
 
@@ -135,7 +159,8 @@ impl TriangleBvh {
     pub fn lower_bound(&self, query: Vec3, slack: f32) -> f32 {
         self.nodes.first().map_or(f32::MAX, |n| {
             let q = Vec3A::from(query);
-            ((n.min - q).max(q - n.max).max(Vec3A::ZERO).length() - slack).max(0.0)
+            let (min, max) = n.corners();
+            ((min - q).max(q - max).max(Vec3A::ZERO).length() - slack).max(0.0)
         })
     }
 
@@ -153,10 +178,7 @@ impl TriangleBvh {
             return None;
         }
         let q = Vec3A::from(query);
-        let box_distance = |n: &Node| {
-            let d = (n.min - q).max(q - n.max).max(Vec3A::ZERO).length() - slack;
-            d.max(0.0).powi(2)
-        };
+        let box_distance = |n: &Node| n.distance_squared(q, slack);
         let mut best: Option<(u32, f32, T)> = None;
         let mut bound = bound;
         let mut stack: [(u32, f32); 64] = [(0, 0.0); 64];
