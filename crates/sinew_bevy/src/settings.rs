@@ -176,6 +176,8 @@ impl SinewSettings {
             threads: self.threads,
             // The systems split by muscle (`par_iter`); same bits either way.
             schedule: sinew_core::SweepSchedule::ByMuscle,
+            // Bevy's task pool decides how the systems split.
+            parallel_threshold: SolverSettings::default().parallel_threshold,
         }
     }
 }

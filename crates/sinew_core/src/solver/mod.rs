@@ -177,6 +177,14 @@ pub struct SolverSettings {
     pub threads: u32,
     /// How coloured methods use the threads. Default: [`SweepSchedule::Auto`].
     pub schedule: SweepSchedule,
+    /// Scenes with fewer constraints than this run their passes over
+    /// muscles on the calling thread, and scenes with fewer particles their
+    /// per-particle passes (integration, goals, publishing), whatever
+    /// `threads` says: a fork and join (≈ 10 µs on the 2-core development
+    /// machine) costs more than the split saves. The same bits either way.
+    /// Default: `8192` (P2 ran 3× and P3 1.2× slower on two threads than on
+    /// one without it; P4 and T7 split).
+    pub parallel_threshold: usize,
 }
 
 impl Default for SolverSettings {
@@ -197,6 +205,7 @@ impl Default for SolverSettings {
             walk_every_iteration: false,
             threads: 1,
             schedule: SweepSchedule::Auto,
+            parallel_threshold: 8192,
         }
     }
 }
@@ -627,7 +636,7 @@ impl Solver {
         self.published = (0..self.targets.len())
             .filter(|&t| matches!(self.targets[t].source, TargetSource::Muscle(_)))
             .collect();
-        self.publish_muscles(true);
+        self.publish_muscles(true, false);
         // Muscle targets follow the bone targets that existed when each was added;
         // find them by source instead of assuming a layout.
         let muscle_target: Vec<usize> = (0..self.muscles.len())
@@ -671,7 +680,7 @@ impl Solver {
     /// BVHs: that iteration walks and runs the full searches.
     /// Targets are independent, so they are published in parallel on the
     /// pool.
-    fn publish_muscles(&mut self, first_iteration: bool) {
+    fn publish_muscles(&mut self, first_iteration: bool, parallel: bool) {
         use rayon::prelude::*;
         let (published, muscles) = (&self.published, &self.muscles);
         let publish = |(ti, t): (usize, &mut TargetSurface)| {
@@ -681,7 +690,7 @@ impl Solver {
                 stage::publish(t, &muscles[m], first_iteration);
             }
         };
-        match &self.pool {
+        match self.pool.as_ref().filter(|_| parallel) {
             Some((_, pool)) if published.len() > 1 => pool.install(|| {
                 self.targets.par_iter_mut().enumerate().for_each(publish);
             }),
@@ -762,13 +771,22 @@ impl Solver {
                 }
             });
         }
+        let many = self.muscles.len() > PARALLEL_MUSCLES || self.settings.parallel_threshold == 0;
         let warnings = map_muscles(
-            self.pool.as_ref(),
+            self.pool.as_ref().filter(|_| many),
             &mut self.muscles,
             Muscle::update_activation,
         );
         self.warnings.extend(warnings.into_iter().flatten());
         self.prepare();
+        // A fork and join costs about 10 µs here: a small scene runs on the
+        // calling thread whatever `threads` says (the same bits either way).
+        let (constraints, particles) = self
+            .muscles
+            .iter()
+            .fold((0, 0), |(c, p), m| (c + m.counts().total(), p + m.x.len()));
+        let split = constraints >= self.settings.parallel_threshold;
+        let split_light = particles >= self.settings.parallel_threshold;
         clock.lap(&mut timings.read_inputs);
         let substeps = self.settings.substeps.max(1);
         let h = dt / substeps as f32;
@@ -787,18 +805,19 @@ impl Solver {
             }
             let poses = &self.substep_poses;
             let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
-            for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
+            let light = self.pool.as_ref().filter(|_| split_light);
+            for_each_muscle(light, &mut self.muscles, |m| {
                 update_attachment_goals(m, &pose);
             });
             clock.lap(&mut timings.update_targets);
             let damping_exp = 1.0 / substeps as f32;
-            self.substep_momentum = map_muscles(self.pool.as_ref(), &mut self.muscles, |m| {
+            self.substep_momentum = map_muscles(light, &mut self.muscles, |m| {
                 begin_substep(m, gravity, h, damping_exp)
             });
             clock.lap(&mut timings.integrate);
             for it in 0..iterations {
                 let full_searches = it == 0 && s == 0;
-                self.publish_muscles(full_searches);
+                self.publish_muscles(full_searches, split_light);
                 clock.lap(&mut timings.update_targets);
                 let search = ClosestSchedule {
                     frame: self.frame,
@@ -808,21 +827,22 @@ impl Solver {
                     active: full_searches,
                     walk: full_searches || self.settings.walk_every_iteration,
                     substep_start: it == 0,
-                    parallel: self.pool.is_some(),
+                    parallel: split && self.pool.is_some(),
                 };
                 let targets = self.targets.as_slice();
                 let order = &self.settings.projection_order;
                 let method = self.settings.method;
-                let parallel = self.pool.is_some();
+                let parallel = split && self.pool.is_some();
+                let pool = self.pool.as_ref().filter(|_| split);
                 let active =
                     |m: &Muscle| it < m.params.iterations.unwrap_or(global_iterations) as usize;
-                match (stage::plan_kind(method), &self.pool) {
+                match (stage::plan_kind(method), pool) {
                     // Global colouring and Hybrid on threads, when splitting
                     // by muscle would leave threads idle: closest data of
                     // every muscle, then colour c of every muscle in one
                     // parallel sweep (same bits as the muscle-by-muscle run
                     // below).
-                    (Some((kind, omega)), Some((n, pool)))
+                    (Some((kind, omega)), Some((n, threads)))
                         if kind != coloring::PlanKind::PerConstraint
                             && match self.settings.schedule {
                                 SweepSchedule::Auto => global_sweeps_pay(&self.muscles, *n),
@@ -830,7 +850,7 @@ impl Solver {
                                 SweepSchedule::ByColor => true,
                             } =>
                     {
-                        for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
+                        for_each_muscle(pool, &mut self.muscles, |m| {
                             if active(m) {
                                 closest_data(m, targets, search);
                             }
@@ -843,7 +863,7 @@ impl Solver {
                                 active(m).then(|| coloring::take_plan(m, order, kind, it == 0))
                             })
                             .collect();
-                        pool.install(|| {
+                        threads.install(|| {
                             use rayon::prelude::*;
                             sweep::sweep_global(muscles, &plans, inv_h2);
                             muscles
@@ -876,7 +896,7 @@ impl Solver {
                     // the time the tasks spent in each.
                     _ => {
                         let split = TaskSplit::new(self.settings.timers);
-                        for_each_muscle(self.pool.as_ref(), &mut self.muscles, |m| {
+                        for_each_muscle(pool, &mut self.muscles, |m| {
                             if active(m) {
                                 let start = split.start();
                                 closest_data(m, targets, search);
@@ -906,7 +926,7 @@ impl Solver {
             let end = |(m, &momentum): (&mut Muscle, &Option<RigidMomentum>)| {
                 end_substep(m, h, momentum);
             };
-            match &self.pool {
+            match self.pool.as_ref().filter(|_| split_light) {
                 Some((_, pool)) => pool.install(|| {
                     use rayon::prelude::*;
                     self.muscles.par_iter_mut().zip(momenta).for_each(end);
@@ -948,6 +968,10 @@ fn global_sweeps_pay(muscles: &[Muscle], threads: u32) -> bool {
     largest > total / threads.max(1) + SWEEP_SYNC_CONSTRAINTS * sweeps
 }
 
+/// Muscles above which activations are updated in parallel (their rest
+/// lengths: a few µs per muscle).
+const PARALLEL_MUSCLES: usize = 16;
+
 /// `f` of every muscle, in muscle order, computed on the pool's threads
 /// when there is one.
 fn map_muscles<R: Send>(
@@ -964,7 +988,8 @@ fn map_muscles<R: Send>(
     }
 }
 
-/// Runs `f` on every muscle, on the pool's threads when there is one.
+/// Runs `f` on every muscle, on the pool's threads when there is one (a
+/// single muscle runs inside the pool too: its own parallel chunks use it).
 fn for_each_muscle(
     pool: Option<&(u32, rayon::ThreadPool)>,
     muscles: &mut [Muscle],
@@ -975,7 +1000,8 @@ fn for_each_muscle(
         Some((_, pool)) if muscles.len() > 1 => {
             pool.install(|| muscles.par_iter_mut().for_each(&f));
         }
-        _ => muscles.iter_mut().for_each(f),
+        Some((_, pool)) => pool.install(|| muscles.iter_mut().for_each(f)),
+        None => muscles.iter_mut().for_each(f),
     }
 }
 

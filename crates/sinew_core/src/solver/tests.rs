@@ -321,6 +321,8 @@ fn positions(scene: &str, method: SolverMethod, threads: u32, frames: usize) -> 
 fn positions_with(scene: &str, frames: usize, edit: impl FnOnce(&mut SolverSettings)) -> Vec<u32> {
     let mut scene = builtin(scene).unwrap();
     scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    // Small scenes too split over the threads they are given.
+    scene.settings.parallel_threshold = 0;
     edit(&mut scene.settings);
     let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
     for _ in 0..frames {
@@ -359,6 +361,7 @@ fn changing_the_thread_count_between_frames_changes_nothing() {
     let reference = positions_with_threads("P3", 1, 20);
     let mut scene = builtin("P3").unwrap();
     scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    scene.settings.parallel_threshold = 0;
     let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
     for frame in 0..20 {
         s.settings.threads = [1, 3, 0, 2][frame % 4];
