@@ -81,6 +81,35 @@ fn particle_indices(m: &Muscle) -> [&[u32]; 11] {
     ]
 }
 
+/// The per-constraint compliances of `m`'s batches that have them, batch
+/// by batch: a constraint with a non-finite one is switched off (weight 0)
+/// and does nothing.
+fn compliances(m: &Muscle) -> [&[f32]; 5] {
+    let k = &m.constraints;
+    [
+        &k.attach.compliance,
+        &k.branch_attach.compliance,
+        &k.hard.compliance,
+        &k.soft.compliance,
+        &k.sliding.compliance,
+    ]
+}
+
+/// Whether constraint `c` of `m` is switched off (see [`compliances`]).
+fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
+    let k = &m.constraints;
+    let i = c.index as usize;
+    let compliance = match c.kind {
+        ConstraintKind::Attach => k.attach.compliance[i],
+        ConstraintKind::BranchAttach => k.branch_attach.compliance[i],
+        ConstraintKind::Hard => k.hard.compliance[i],
+        ConstraintKind::Soft => k.soft.compliance[i],
+        ConstraintKind::Sliding => k.sliding.compliance[i],
+        _ => return false,
+    };
+    !compliance.is_finite()
+}
+
 /// Every constraint of `m` except Volume, type by type in `order`.
 pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<ConstraintRef> {
     let k = &m.constraints;
@@ -249,6 +278,10 @@ pub struct ColorPlan {
     /// batch by batch ([`particle_indices`]): what makes a colour's units
     /// disjoint, compared whole (a memory compare) by [`ColorPlan::fits`].
     tied: Vec<u32>,
+    /// Which constraints were switched off when the plan was built
+    /// ([`compliances`], batch by batch): the sweeps skip them, and
+    /// [`ColorPlan::fits`] compares.
+    off: Vec<bool>,
     /// `refs[units[u]..units[u + 1]]` is unit `u`.
     units: Vec<u32>,
     /// `units` of colour `c`: `colors[c]..colors[c + 1]`.
@@ -382,6 +415,10 @@ impl ColorPlan {
             segments: Vec::new(),
             chunk_segments: vec![0],
             tied: particle_indices(m).concat(),
+            off: compliances(m)
+                .iter()
+                .flat_map(|c| c.iter().map(|c| !c.is_finite()))
+                .collect(),
             units: vec![0],
             colors: vec![0],
             chunks: vec![0],
@@ -440,7 +477,9 @@ impl ColorPlan {
     /// unit's own order matters, and it is kept: units are built type by
     /// type in `order` (checked), and the sort is stable. The runs need no
     /// per-constraint type dispatch, and the result is bit-identical to
-    /// solving unit after unit.
+    /// solving unit after unit. Switched-off constraints (weight 0: T7's
+    /// Soft and Hard, a third of its constraints) are left out of the runs;
+    /// they would return no correction.
     fn pack_segments(&mut self, m: &Muscle, order: &[ConstraintKind]) {
         let rank = |k: ConstraintKind| order.iter().position(|&o| o == k).unwrap_or(order.len());
         for u in 0..self.units.len() - 1 {
@@ -457,7 +496,8 @@ impl ColorPlan {
             chunk.extend_from_slice(&self.refs[self.units[u0] as usize..self.units[u1] as usize]);
             chunk.sort_by_key(|c| rank(c.kind));
             let first = self.segments.len();
-            for c in &chunk {
+            // A switched-off constraint does nothing: the sweeps skip it.
+            for c in chunk.iter().filter(|&&c| !is_off(m, c)) {
                 let start = self.ops.len() as u32;
                 self.ops.push(PlannedConstraint {
                     index: c.index,
@@ -482,8 +522,9 @@ impl ColorPlan {
     }
 
     /// Whether the plan still matches `m`: the same particle and constraint
-    /// counts, and every planned constraint still moves the particles it
-    /// moved when the plan was built. A compare of the index arrays against
+    /// counts, every planned constraint still moves the particles it moved
+    /// when the plan was built, and the same constraints are switched off
+    /// (weight 0). A compare of the index arrays against
     /// the plan's copy (about 0.1 ms per iteration on the full body, so the
     /// solver checks it in the first iteration of a substep, when a host may
     /// have edited the muscle, and rebuilds a stale plan). A stale plan would
@@ -500,6 +541,10 @@ impl ColorPlan {
                 then == now
             })
             && rest.is_empty()
+            && compliances(m)
+                .iter()
+                .flat_map(|c| c.iter().map(|c| !c.is_finite()))
+                .eq(self.off.iter().copied())
     }
 
     /// The cheap part of [`ColorPlan::fits`]: counts only.
@@ -682,6 +727,33 @@ mod tests {
                 let expected = m.counts().total() - usize::from(m.constraints.volume.is_some());
                 assert_eq!(all.len(), expected, "{scene}: constraints missing");
             }
+        }
+    }
+
+    #[test]
+    fn switched_off_constraints_are_skipped_and_switching_one_makes_the_plan_stale() {
+        for mut m in muscles("P3") {
+            let order = ConstraintKind::CANONICAL_ORDER;
+            let all = ColorPlan::clustered(&m, &order);
+            assert!(all.fits(&m));
+            assert_eq!(all.ops.len(), all.refs.len());
+            // Weight 0 on a Soft and a Sliding constraint: the old plan no
+            // longer fits, the new one leaves both out of its runs.
+            m.constraints.soft.compliance[0] = f32::INFINITY;
+            m.constraints.sliding.compliance[1] = f32::INFINITY;
+            assert!(!all.fits(&m));
+            let fewer = ColorPlan::clustered(&m, &order);
+            assert!(fewer.fits(&m));
+            assert_eq!(fewer.refs, all.refs, "the colouring itself is unchanged");
+            assert_eq!(fewer.ops.len(), all.ops.len() - 2);
+            let planned = |kind, index| {
+                fewer.segments.iter().any(|s| {
+                    s.kind == kind && fewer.segment_ops(s).iter().any(|op| op.index == index)
+                })
+            };
+            assert!(!planned(ConstraintKind::Soft, 0));
+            assert!(!planned(ConstraintKind::Sliding, 1));
+            assert!(planned(ConstraintKind::Soft, 1));
         }
     }
 

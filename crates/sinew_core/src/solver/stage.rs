@@ -181,15 +181,19 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     let moved = |t: &TargetSurface| search.substep_start || t.is_deforming();
     // Disabled instances (weight 0: infinite compliance) need no goal.
     for (i, a) in c.soft_anchor.iter().enumerate() {
-        let t = targets.target(m.target_ids[a.target as usize]);
-        if c.soft.compliance[i].is_finite() && moved(t) {
-            c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
+        if c.soft.compliance[i].is_finite() {
+            let t = targets.target(m.target_ids[a.target as usize]);
+            if moved(t) {
+                c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
+            }
         }
     }
     for (i, a) in c.hard_anchor.iter().enumerate() {
-        let t = targets.target(m.target_ids[a.target as usize]);
-        if c.hard.compliance[i].is_finite() && moved(t) {
-            c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+        if c.hard.compliance[i].is_finite() {
+            let t = targets.target(m.target_ids[a.target as usize]);
+            if moved(t) {
+                c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+            }
         }
     }
 }
