@@ -94,6 +94,23 @@ pub struct VolumeConstraint {
     pub polygon_terms: Vec<(Vec3A, Vec3A)>,
 }
 
+/// `f(block index, block)` of each block of [`VolumeConstraint::BLOCK`]
+/// items of `items`, in block order, the blocks on the current rayon pool
+/// when `parallel`.
+fn map_blocks<T: Send, R: Send>(
+    items: &mut [T],
+    parallel: bool,
+    f: impl Fn((usize, &mut [T])) -> R + Sync + Send,
+) -> Vec<R> {
+    use rayon::prelude::*;
+    let size = VolumeConstraint::BLOCK;
+    if parallel {
+        items.par_chunks_mut(size).enumerate().map(f).collect()
+    } else {
+        items.chunks_mut(size).enumerate().map(f).collect()
+    }
+}
+
 /// A polygon's part of `6V` and the terms its vertices' gradients share:
 /// `(A·m, m, A/K)` with `A = Σ p_k × p_k+1` and `m` the centroid (a
 /// triangle needs neither term: see [`gradient_part`]).
@@ -227,7 +244,6 @@ impl VolumeConstraint {
     /// The blocked evaluation (see [`VolumeConstraint::BLOCKED_POLYGONS`]);
     /// `self.relative` is filled.
     fn evaluate_blocked(&mut self, w: &[f32], parallel: bool) -> (f64, f64) {
-        use rayon::prelude::*;
         if self.vertex_polygon_offsets.len() != self.surface_count + 1 {
             self.build_vertex_polygons();
         }
@@ -247,15 +263,10 @@ impl VolumeConstraint {
             }
             six_v
         };
-        let parts: Vec<f64> = if parallel {
-            let blocks = self.polygon_terms.par_chunks_mut(Self::BLOCK);
-            blocks.enumerate().map(polygon_block).collect()
-        } else {
-            let blocks = self.polygon_terms.chunks_mut(Self::BLOCK);
-            blocks.enumerate().map(polygon_block).collect()
-        };
         // Block sums added in block order: the same bits on any thread count.
-        let six_v: f64 = parts.iter().sum();
+        let six_v: f64 = map_blocks(&mut self.polygon_terms, parallel, polygon_block)
+            .iter()
+            .sum();
         // Vertex blocks: each vertex gathers its gradient from its polygons,
         // in polygon order (the bits of the polygon-by-polygon sum).
         let (around_offsets, around, terms) = (
@@ -279,14 +290,9 @@ impl VolumeConstraint {
             }
             wg
         };
-        let parts: Vec<f64> = if parallel {
-            let blocks = self.gradient.par_chunks_mut(Self::BLOCK);
-            blocks.enumerate().map(vertex_block).collect()
-        } else {
-            let blocks = self.gradient.chunks_mut(Self::BLOCK);
-            blocks.enumerate().map(vertex_block).collect()
-        };
-        let wg: f64 = parts.iter().sum();
+        let wg: f64 = map_blocks(&mut self.gradient, parallel, vertex_block)
+            .iter()
+            .sum();
         (six_v / 6.0 - self.ratio as f64 * self.rest_volume, wg)
     }
 
