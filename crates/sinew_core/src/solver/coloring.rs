@@ -47,18 +47,12 @@ pub struct ColorGroups {
 
 /// The particles constraint `c` of `m` moves (targets are read-only).
 pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<u32>; 2] {
-    let k = &m.constraints;
-    let i = c.index as usize;
     match c.kind {
-        ConstraintKind::Attach => [Some(k.attach.particle[i]), None],
-        ConstraintKind::BranchAttach => [Some(k.branch_attach.particle[i]), None],
-        ConstraintKind::Hard => [Some(k.hard.particle[i]), None],
-        ConstraintKind::Soft => [Some(k.soft.particle[i]), None],
-        ConstraintKind::Sliding => [Some(k.sliding.particle[i]), None],
-        ConstraintKind::Branch => [Some(k.branch.a[i]), Some(k.branch.b[i])],
-        ConstraintKind::Internal => [Some(k.internal.a[i]), Some(k.internal.b[i])],
-        ConstraintKind::Fiber => [Some(k.fiber.a[i]), Some(k.fiber.b[i])],
         ConstraintKind::Volume => [None, None],
+        ConstraintKind::Branch | ConstraintKind::Internal | ConstraintKind::Fiber => {
+            batch_particles(m, c).map(Some)
+        }
+        _ => [Some(batch_particles(m, c)[0]), None],
     }
 }
 
@@ -97,17 +91,16 @@ fn compliances(m: &Muscle) -> [&[f32]; 5] {
 
 /// Whether constraint `c` of `m` is switched off (see [`compliances`]).
 fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
-    let k = &m.constraints;
-    let i = c.index as usize;
-    let compliance = match c.kind {
-        ConstraintKind::Attach => k.attach.compliance[i],
-        ConstraintKind::BranchAttach => k.branch_attach.compliance[i],
-        ConstraintKind::Hard => k.hard.compliance[i],
-        ConstraintKind::Soft => k.soft.compliance[i],
-        ConstraintKind::Sliding => k.sliding.compliance[i],
+    // The position of `c`'s batch in `compliances`.
+    let batch = match c.kind {
+        ConstraintKind::Attach => 0,
+        ConstraintKind::BranchAttach => 1,
+        ConstraintKind::Hard => 2,
+        ConstraintKind::Soft => 3,
+        ConstraintKind::Sliding => 4,
         _ => return false,
     };
-    !compliance.is_finite()
+    !compliances(m)[batch][c.index as usize].is_finite()
 }
 
 /// Every constraint of `m` except Volume, type by type in `order`.
