@@ -819,6 +819,7 @@ impl Solver {
                 let full_searches = it == 0 && s == 0;
                 self.publish_muscles(full_searches, split_light);
                 clock.lap(&mut timings.update_targets);
+                let parallel = split && self.pool.is_some();
                 let search = ClosestSchedule {
                     frame: self.frame,
                     interval: self.settings.full_search_interval.max(1),
@@ -827,12 +828,11 @@ impl Solver {
                     active: full_searches,
                     walk: full_searches || self.settings.walk_every_iteration,
                     substep_start: it == 0,
-                    parallel: split && self.pool.is_some(),
+                    parallel,
                 };
                 let targets = self.targets.as_slice();
                 let order = &self.settings.projection_order;
                 let method = self.settings.method;
-                let parallel = split && self.pool.is_some();
                 let pool = self.pool.as_ref().filter(|_| split);
                 let active =
                     |m: &Muscle| it < m.params.iterations.unwrap_or(global_iterations) as usize;
@@ -895,12 +895,12 @@ impl Solver {
                     // time is split between the two blocks in proportion to
                     // the time the tasks spent in each.
                     _ => {
-                        let split = TaskSplit::new(self.settings.timers);
+                        let task_time = TaskSplit::new(self.settings.timers);
                         for_each_muscle(pool, &mut self.muscles, |m| {
                             if active(m) {
-                                let start = split.start();
+                                let start = task_time.start();
                                 closest_data(m, targets, search);
-                                let middle = split.lap(start, 0);
+                                let middle = task_time.lap(start, 0);
                                 project_iteration(
                                     m,
                                     method,
@@ -910,14 +910,14 @@ impl Solver {
                                     parallel,
                                     it == 0,
                                 );
-                                split.lap(middle, 1);
+                                task_time.lap(middle, 1);
                             }
                         });
-                        let [closest, project] = split.shares();
+                        let [closest, project] = task_time.shares();
                         clock.lap_split(
                             [&mut timings.closest_data, &mut timings.project],
                             [closest, project],
-                            split.reads(),
+                            task_time.reads(),
                         );
                     }
                 }
