@@ -70,23 +70,11 @@ enum Command {
         #[command(flatten)]
         args: import::ImportArgs,
     },
-    /// Simulate and report finiteness, attachment error, muscle–bone
-    /// penetration, volume range, peak activation and belly cross-section.
-    Check {
-        /// Scene file or built-in name.
-        scene: String,
-        /// Frames to simulate (default: the scene's).
-        #[arg(long)]
-        frames: Option<u32>,
-        /// Check penetration every N frames.
-        #[arg(long, default_value_t = 1)]
-        every: u32,
-        /// Penetration depth counted, in millimetres.
-        #[arg(long, default_value_t = 2.0)]
-        depth_mm: f32,
-        #[command(flatten)]
-        overrides: bench::Overrides,
-    },
+    /// Simulate and judge: finiteness, attachment error, muscle–bone
+    /// penetration, volume, edge strain, flipped triangles and, once the
+    /// motion has stopped, rest (velocity, jiggle, deviation from the rest
+    /// shape). Exits non-zero when a figure is out of its range.
+    Check(check::CheckArgs),
     /// Simulate to a frame and draw bones and muscles into a PNG (software
     /// rasteriser: no GPU or window needed).
     Render {
@@ -144,13 +132,7 @@ fn main() -> ExitCode {
             no_bones,
             out,
         } => render::run(&scene, frame, view, (width, height), !no_bones, &out),
-        Command::Check {
-            scene,
-            frames,
-            every,
-            depth_mm,
-            overrides,
-        } => check::run(&scene, frames, every, depth_mm, overrides),
+        Command::Check(args) => check::run(&args),
         Command::ImportMjcf { input, args } => import::run(&input, &args),
         Command::Suite(args) => suite::run(&args),
     };

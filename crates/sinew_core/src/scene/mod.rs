@@ -200,6 +200,53 @@ impl Scene {
         })
     }
 
+    /// Time of the scene's last motion key: bone tracks, joint motion and
+    /// activation curves (sensors follow the bones). `0` for a still scene.
+    /// Units: s.
+    pub fn motion_end(&self) -> f32 {
+        let tracks = self
+            .bones
+            .iter()
+            .flat_map(|b| b.track.keys.iter().map(|k| k.time));
+        let joints = self.skeleton.iter().flat_map(|s| {
+            s.motion
+                .iter()
+                .flat_map(|m| m.curve.keys.iter().map(|k| k.0))
+        });
+        let curves = self
+            .muscles
+            .iter()
+            .filter_map(|m| m.activation.as_ref())
+            .flat_map(|c| c.keys.iter().map(|k| k.0));
+        tracks.chain(joints).chain(curves).fold(0.0, f32::max)
+    }
+
+    /// Holds every bone track, joint motion and activation curve at its
+    /// value at time 0: the scene at rest in its first pose (sensors then
+    /// read still bones).
+    pub fn hold_first_pose(&mut self) {
+        for b in &mut self.bones {
+            if !b.track.keys.is_empty() {
+                let (rotation, translation) = b.track.sample_parts(0.0);
+                b.track.keys = vec![crate::animation::TransformKey {
+                    time: 0.0,
+                    translation,
+                    rotation,
+                }];
+            }
+        }
+        if let Some(skeleton) = &mut self.skeleton {
+            for m in &mut skeleton.motion {
+                m.curve = Curve::constant(m.curve.sample(0.0));
+            }
+        }
+        for m in &mut self.muscles {
+            if let Some(c) = &mut m.activation {
+                *c = Curve::constant(c.sample(0.0));
+            }
+        }
+    }
+
     /// Loads every bone and muscle mesh (paths relative to `base_dir`).
     pub fn load_meshes(
         &self,

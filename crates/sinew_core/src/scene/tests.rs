@@ -36,3 +36,15 @@ fn duplicate_names_are_rejected() {
         Err(SceneError::DuplicateName(_))
     ));
 }
+
+#[test]
+fn holding_the_first_pose_removes_the_motion_and_keeps_the_start() {
+    let mut scene = builtin("T1").unwrap();
+    assert!(scene.motion_end() > 1.0, "T1 activates over time");
+    let start = scene.muscles[0].activation.as_ref().unwrap().sample(0.0);
+    scene.hold_first_pose();
+    assert_eq!(scene.motion_end(), 0.0);
+    let curve = scene.muscles[0].activation.as_ref().unwrap();
+    assert_eq!(curve.sample(0.0), start);
+    assert_eq!(curve.sample(1.0), start);
+}

@@ -1,0 +1,165 @@
+//! Measurements of a running simulation: the figures the anatomy scenes are
+//! judged by (finiteness, attachment error, muscle–bone penetration, volume,
+//! activation and belly cross-section), whether muscles keep their shape
+//! (edge strain, folds, deviation from rest: [`shape`]) and whether they come
+//! to rest (velocity, kinetic energy and acceleration over the last second),
+//! collected frame by frame.
+
+mod metrics;
+mod shape;
+mod verdict;
+
+pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
+pub use shape::{RestDeviation, ShapeReference, ShapeSample};
+pub use verdict::{Thresholds, Verdict};
+
+use crate::solver::Solver;
+use crate::target::TargetSource;
+use glam::Vec3;
+
+/// Area of the cross-section of a closed, outward-oriented triangle mesh by
+/// the plane through `point` with normal `normal`: the sum over triangles of
+/// their directed cut segments, `½ Σ (a × b)·n̂`. Units: m².
+pub fn cross_section_area(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    point: Vec3,
+    normal: Vec3,
+) -> f32 {
+    let n = normal.normalize_or_zero();
+    let mut twice = 0.0f64;
+    for t in triangles {
+        let p = t.map(|i| positions[i as usize] - point);
+        let d = p.map(|v| v.dot(n));
+        // Directed cut segment: from where the triangle's boundary (in its
+        // own order) goes up through the plane to where it comes back down.
+        // Neighbours traverse a shared edge the other way, so the segments
+        // chain into closed loops whose signed areas add up.
+        let mut up = None;
+        let mut down = None;
+        for e in 0..3 {
+            let (a, b) = (e, (e + 1) % 3);
+            let crossing = || p[a] + (p[b] - p[a]) * (d[a] / (d[a] - d[b]));
+            if d[a] <= 0.0 && d[b] > 0.0 {
+                up = Some(crossing());
+            } else if d[a] > 0.0 && d[b] <= 0.0 {
+                down = Some(crossing());
+            }
+        }
+        if let (Some(a), Some(b)) = (up, down) {
+            twice += f64::from(a.cross(b).dot(n));
+        }
+    }
+    (twice.abs() * 0.5) as f32
+}
+
+/// A muscle's belly cross-section: the plane through the internal point
+/// farthest (in rings) from the roots — the middle of the belly for roots at
+/// both tendon tips — normal to the medulla there (the line between that
+/// point's branch neighbours), in the current pose. Without an internal
+/// structure: the plane through the surface centroid normal to the line
+/// between the first two roots.
+pub fn belly_cross_section(solver: &Solver, muscle: usize) -> f32 {
+    let m = &solver.muscles()[muscle];
+    let surface = &m.x[..m.surface_count];
+    let s = &m.structure;
+    let belly = (0..s.points.len()).max_by_key(|&k| (s.levels[k], std::cmp::Reverse(k)));
+    let (point, axis) = match belly {
+        Some(k) => {
+            let at = |i: u32| m.x[m.surface_count + i as usize];
+            let neighbours: Vec<u32> = s
+                .branches
+                .iter()
+                .filter_map(|&[a, b]| {
+                    (a as usize == k)
+                        .then_some(b)
+                        .or((b as usize == k).then_some(a))
+                })
+                .collect();
+            let here = at(k as u32);
+            let axis = match neighbours.as_slice() {
+                [a, b, ..] => at(*b) - at(*a),
+                [a] => here - at(*a),
+                [] => Vec3::X,
+            };
+            (here, axis)
+        }
+        None => {
+            let centroid = surface.iter().copied().sum::<Vec3>() / surface.len().max(1) as f32;
+            let axis = match m.roots.as_slice() {
+                [a, b, ..] => m.x[*b as usize] - m.x[*a as usize],
+                _ => Vec3::X,
+            };
+            (centroid, axis)
+        }
+    };
+    cross_section_area(surface, &m.mesh.triangles, point, axis)
+}
+
+/// Distance of every attached vertex from its bone point.
+pub fn attachment_errors(solver: &Solver) -> impl Iterator<Item = f32> + '_ {
+    solver.muscles().iter().flat_map(move |m| {
+        m.attachments.iter().map(move |a| {
+            let pose = a
+                .bone
+                .map_or(glam::Affine3A::IDENTITY, |b| solver.bones()[b].transform);
+            m.x[a.vertex as usize].distance(pose.transform_point3(a.vertex_local))
+        })
+    })
+}
+
+/// Per muscle, its surface vertices deeper than `depth` inside any bone mesh.
+/// The closest-point test proposes, the winding number confirms.
+pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
+    let bones: Vec<_> = solver
+        .targets()
+        .iter()
+        .filter(|t| matches!(t.source, TargetSource::Bone(_)))
+        .collect();
+    solver
+        .muscles()
+        .iter()
+        .map(|m| {
+            m.x[..m.surface_count]
+                .iter()
+                .filter(|&&x| {
+                    bones.iter().any(|b| {
+                        // Outside the bone's box is outside the bone.
+                        b.lower_bound(x) == 0.0
+                            && b.closest_within(x, None, f32::INFINITY)
+                                .is_some_and(|h| h.signed_distance < -depth && b.contains(x))
+                    })
+                })
+                .count()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::primitives::MeshGenerator;
+
+    #[test]
+    fn cross_section_of_an_ellipsoid_matches_pi_b_c() {
+        let m = MeshGenerator::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::new(0.1, 0.02, 0.03),
+            segments: 64,
+            stacks: 64,
+        }
+        .build("e")
+        .unwrap();
+        let a = cross_section_area(&m.positions, &m.triangles, Vec3::ZERO, Vec3::X);
+        let exact = std::f32::consts::PI * 0.02 * 0.03;
+        assert!((a - exact).abs() / exact < 0.01, "{a} vs {exact}");
+        // Tilted plane through the centre: larger, still finite and positive.
+        let b = cross_section_area(
+            &m.positions,
+            &m.triangles,
+            Vec3::ZERO,
+            Vec3::new(1.0, 1.0, 0.0),
+        );
+        assert!(b > a);
+    }
+}
