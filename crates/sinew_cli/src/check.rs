@@ -38,6 +38,12 @@ pub struct Limits {
     /// At rest: largest RMS surface acceleration over the last second, in m/s².
     #[arg(long, default_value_t = 0.1)]
     pub max_rest_jiggle: f32,
+    /// At rest: smallest edge length / rest length over the last second.
+    #[arg(long, default_value_t = 0.8)]
+    pub min_rest_strain: f32,
+    /// At rest: largest edge length / rest length over the last second.
+    #[arg(long, default_value_t = 1.25)]
+    pub max_rest_strain: f32,
     /// At rest: largest vertex distance from its rest position, in millimetres.
     #[arg(long, default_value_t = 3.0)]
     pub max_rest_deviation_mm: f32,
@@ -56,6 +62,7 @@ impl From<Limits> for Thresholds {
             flipped: l.max_flipped,
             rest_velocity: l.max_rest_velocity_mm_s * 1e-3,
             rest_jiggle: l.max_rest_jiggle,
+            rest_strain: [l.min_rest_strain, l.max_rest_strain],
             rest_deviation: l.max_rest_deviation_mm * 1e-3,
             settle: l.settle,
             ..Self::default()

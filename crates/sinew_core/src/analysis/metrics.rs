@@ -88,8 +88,9 @@ impl Default for StrainExtremes {
 }
 
 /// A muscle's surface motion, in the frame of its first attached bone (so
-/// the bone's own motion does not count), summed over vertices and frames.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// the bone's own motion does not count), summed over vertices and frames,
+/// and the extremes of its edge strain over those frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotionSample {
     /// Σ |v|² over vertices and frames. Units: m²/s².
     pub velocity2: f64,
@@ -103,6 +104,25 @@ pub struct MotionSample {
     pub acceleration_samples: u64,
     /// Frames summed.
     pub frames: u32,
+    /// Smallest edge length / rest length in those frames.
+    pub strain_min: f32,
+    /// Largest edge length / rest length in those frames.
+    pub strain_max: f32,
+}
+
+impl Default for MotionSample {
+    fn default() -> Self {
+        Self {
+            velocity2: 0.0,
+            acceleration2: 0.0,
+            kinetic_energy: 0.0,
+            samples: 0,
+            acceleration_samples: 0,
+            frames: 0,
+            strain_min: f32::INFINITY,
+            strain_max: f32::NEG_INFINITY,
+        }
+    }
 }
 
 impl MotionSample {
@@ -128,6 +148,8 @@ impl MotionSample {
         self.samples += other.samples;
         self.acceleration_samples += other.acceleration_samples;
         self.frames += other.frames;
+        self.strain_min = self.strain_min.min(other.strain_min);
+        self.strain_max = self.strain_max.max(other.strain_max);
     }
 }
 
@@ -188,8 +210,8 @@ impl RunMetrics {
         if !finite {
             return;
         }
-        self.observe_motion(solver);
-        self.observe_shape(solver, frame);
+        let strains = self.observe_shape(solver, frame);
+        self.observe_motion(solver, &strains);
         for (i, e) in attachment_errors(solver).enumerate() {
             self.attachment_error_sum += f64::from(e);
             self.attachment_samples += 1;
@@ -275,9 +297,13 @@ impl RunMetrics {
         (self.attachment_error_sum / self.attachment_samples.max(1) as f64) as f32
     }
 
-    fn observe_shape(&mut self, solver: &Solver, frame: u32) {
+    /// Records the shape figures of this frame; returns each muscle's
+    /// (min, max) edge strain.
+    fn observe_shape(&mut self, solver: &Solver, frame: u32) -> Vec<(f32, f32)> {
+        let mut strains = Vec::with_capacity(self.shapes.len());
         for (i, m) in solver.muscles().iter().enumerate() {
             let s = self.shapes[i].sample(m, &mut self.scratch);
+            strains.push((s.strain_min, s.strain_max));
             let e = &mut self.strain[i];
             let lower = |slot: &mut (f32, u32), value: f32| {
                 if value < slot.0 {
@@ -297,11 +323,12 @@ impl RunMetrics {
                 self.flipped_max[i] = (s.flipped, frame);
             }
         }
+        strains
     }
 
     /// Velocities and accelerations of the surface vertices in each muscle's
     /// first attached bone's frame, by differences over frames.
-    fn observe_motion(&mut self, solver: &Solver) {
+    fn observe_motion(&mut self, solver: &Solver, strains: &[(f32, f32)]) {
         let dt = solver.settings.dt * solver.settings.time_scale;
         let mut local = Vec::with_capacity(self.history[1].len());
         let mut ranges = Vec::with_capacity(solver.muscles().len());
@@ -324,9 +351,13 @@ impl RunMetrics {
         let has_velocity = old.len() == local.len();
         let has_acceleration = has_velocity && older.len() == local.len();
         let mut samples = Vec::with_capacity(ranges.len());
-        for (m, range) in solver.muscles().iter().zip(ranges) {
+        for ((m, range), &(strain_min, strain_max)) in
+            solver.muscles().iter().zip(ranges).zip(strains)
+        {
             let mut s = MotionSample {
                 frames: 1,
+                strain_min,
+                strain_max,
                 ..MotionSample::default()
             };
             if has_velocity {

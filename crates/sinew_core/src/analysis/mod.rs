@@ -1,9 +1,10 @@
 //! Measurements of a running simulation: the figures the anatomy scenes are
 //! judged by (finiteness, attachment error, muscle–bone penetration, volume,
 //! activation and belly cross-section), whether muscles keep their shape
-//! (edge strain, folds, deviation from rest: [`shape`]) and whether they come
-//! to rest (velocity, kinetic energy and acceleration over the last second),
-//! collected frame by frame.
+//! (edge strain, flipped triangles, deviation from rest: [`ShapeReference`])
+//! and whether they come to rest (velocity, kinetic energy and acceleration
+//! over the last second), collected frame by frame; [`Thresholds`] and
+//! [`RunMetrics::verdicts`] judge them.
 
 mod metrics;
 mod shape;

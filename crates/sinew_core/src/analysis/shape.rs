@@ -96,7 +96,7 @@ impl ShapeReference {
             .collect();
         let areas = area_vectors(triangles, rest);
         let judged = (0..triangles.len())
-            .map(|t| fold_measure(t, &areas, &neighbours) > 0.0)
+            .map(|t| fold_measure(t, &areas, &neighbours) > JUDGED)
             .collect();
         let n = m.surface_count as u32;
         let points = &m.structure.vertex_point;
@@ -108,7 +108,7 @@ impl ShapeReference {
                     return None;
                 }
                 let q = tri.map(|v| n + points[v as usize]);
-                (inversion_measure(*tri, q, area, rest) > 0.0).then_some(q)
+                (inversion_measure(*tri, q, area, rest) > JUDGED).then_some(q)
             })
             .collect();
         let home = (0..m.surface_count)
@@ -195,13 +195,25 @@ impl ShapeReference {
     }
 }
 
-/// `n_t · (m_t − q̄)`: the triangle's area vector against the direction
-/// from the mean of its vertices' internal points `q` to its centroid;
-/// positive while the triangle faces away from the medulla.
+/// A triangle is judged for a fold (or an inversion) only where, at rest,
+/// the cosine it measures exceeds this: a triangle nearly edge-on to its
+/// neighbourhood or to the medulla at rest (a tendon tip) can tip past 90°
+/// with no fold at all.
+const JUDGED: f32 = 0.3;
+
+/// The cosine between the triangle's normal and the direction from the mean
+/// of its vertices' internal points `q` to its centroid: positive while the
+/// triangle faces away from the medulla.
 fn inversion_measure(tri: [u32; 3], q: [u32; 3], area: &Vec3, positions: &[Vec3]) -> f32 {
     let centre = q.iter().map(|&i| positions[i as usize]).sum::<Vec3>() / 3.0;
     let mid = tri.iter().map(|&i| positions[i as usize]).sum::<Vec3>() / 3.0;
-    area.dot(mid - centre)
+    cosine(*area, mid - centre)
+}
+
+/// Cosine of the angle between `a` and `b` (0 when either is zero).
+fn cosine(a: Vec3, b: Vec3) -> f32 {
+    let d = a.length() * b.length();
+    if d > 0.0 { a.dot(b) / d } else { 0.0 }
 }
 
 /// Area vectors `(b − a) × (c − a)` of the triangles at `positions`.
@@ -215,15 +227,16 @@ fn area_vectors(triangles: &[[u32; 3]], positions: &[Vec3]) -> Vec<Vec3> {
         .collect()
 }
 
-/// `n_t · Σ n_k` over the edge neighbours `k` of triangle `t`: negative when
-/// the triangle faces against its neighbourhood.
+/// The cosine between triangle `t`'s normal and the sum of its edge
+/// neighbours' area vectors: negative when it faces against its
+/// neighbourhood.
 fn fold_measure(t: usize, areas: &[Vec3], neighbours: &[[u32; 3]]) -> f32 {
     let around: Vec3 = neighbours[t]
         .iter()
         .filter(|&&k| k != u32::MAX)
         .map(|&k| areas[k as usize])
         .sum();
-    areas[t].dot(around)
+    cosine(areas[t], around)
 }
 
 #[cfg(test)]

@@ -31,6 +31,9 @@ pub struct Thresholds {
     /// At rest: RMS surface acceleration over the last second. Units: m/s².
     /// Default: `0.1`.
     pub rest_jiggle: f32,
+    /// At rest: edge length / rest length over the last second, `[min, max]`.
+    /// Default: `[0.8, 1.25]`.
+    pub rest_strain: [f32; 2],
     /// At rest: largest distance of a surface vertex from its rest position
     /// (carried by its home bone) at the end of the run. Units: m. Default: `0.003`.
     pub rest_deviation: f32,
@@ -50,6 +53,7 @@ impl Default for Thresholds {
             flipped: 0,
             rest_velocity: 0.001,
             rest_jiggle: 0.1,
+            rest_strain: [0.8, 1.25],
             rest_deviation: 0.003,
             settle: 2.0,
         }
@@ -207,6 +211,24 @@ impl RunMetrics {
             ),
             format!("< {} m/s²", limits.rest_jiggle),
             judged(total.rms_acceleration() < limits.rest_jiggle),
+        );
+        let (lo_i, _) = worst(&mut motion.iter().map(|m| -f64::from(m.strain_min)));
+        let (hi_i, _) = worst(&mut motion.iter().map(|m| f64::from(m.strain_max)));
+        push(
+            "rest strain",
+            format!(
+                "min {:.3} ({}), max {:.3} ({}) over the last second",
+                total.strain_min,
+                name(lo_i),
+                total.strain_max,
+                name(hi_i)
+            ),
+            format!("[{}, {}]", limits.rest_strain[0], limits.rest_strain[1]),
+            judged(
+                muscles.is_empty()
+                    || total.strain_min >= limits.rest_strain[0]
+                        && total.strain_max <= limits.rest_strain[1],
+            ),
         );
         let deviation = self.rest_deviation(solver);
         let (d_i, d) = worst(&mut deviation.iter().map(|d| f64::from(d.max)));

@@ -15,6 +15,14 @@
 //! | Sliding | [`SlidingBatch`] | `|p − c| − d0`, or `n·(p − c) − d0` inside |
 //! | Volume | [`VolumeConstraint`] | `V(p) − k_p(a) V0` |
 //!
+//! A connection to another muscle (Sliding, Soft, Hard) is a two-body
+//! constraint between a vertex and a point `c = Σ βₖ qₖ` of the other
+//! muscle's surface. Each muscle solves only its own side, reading the other
+//! through its snapshot, but with the pair's effective mass: the sum gains
+//! the target point's generalised inverse mass `w_c = Σ βₖ² wₖ`, so two
+//! muscles that target each other together move by the violation once, not
+//! twice (see ARCHITECTURE.md, "Connections"). Bones have `w_c = 0`.
+//!
 //! # References
 //! - Macklin, Müller, Chentanez, *XPBD*, 2016.
 //! - Romeo, Monteagudo, Sánchez-Quirós, *Muscle Simulation with XPBD*, CEIG 2018.

@@ -25,6 +25,9 @@ pub struct PointBatch {
     pub compliance: Vec<f32>,
     /// Accumulated multipliers.
     pub lambda: Vec<f32>,
+    /// Generalised inverse mass of the goal's other body (Soft and Hard on a
+    /// muscle target; 0 for bones and attachments). Units: 1/kg.
+    pub target_w: Vec<f32>,
 }
 
 impl PointBatch {
@@ -45,6 +48,7 @@ impl PointBatch {
         self.rest.push(rest);
         self.compliance.push(compliance);
         self.lambda.push(0.0);
+        self.target_w.push(0.0);
     }
 
     /// Constraint value `C` for constraint `i`.
@@ -92,7 +96,7 @@ impl ConstraintBatch for PointBatch {
         if len < 1e-9 {
             return None;
         }
-        let dl = delta_lambda(len - self.rest[i], lambda, w[k], alpha);
+        let dl = delta_lambda(len - self.rest[i], lambda, w[k] + self.target_w[i], alpha);
         let mut to = x;
         to += d * (w[k] * dl / len);
         Some(Correction::one(dl, particle, to))

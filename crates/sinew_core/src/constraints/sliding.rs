@@ -34,7 +34,10 @@ pub struct SlidingBatch {
     pub particle: Vec<u32>,
     /// Compliance per constraint (type compliance / painted weight); infinite = off.
     pub compliance: Vec<f32>,
-    /// Rest gap per (constraint, target): `rest_gap[i * targets + t]`. Units: m.
+    /// Rest gap per (constraint, target): `rest_gap[i * targets + t]`;
+    /// `f32::INFINITY` where the vertex never slides on that target (out of
+    /// its contact band at rest, see [`crate::solver::stage::link_muscle`]).
+    /// Units: m.
     pub rest_gap: Vec<f32>,
     /// Whether the vertex was outside the target at rest, per (constraint, target).
     pub rest_outside: Vec<bool>,
@@ -58,6 +61,13 @@ pub struct SlidingBatch {
     pub targets: usize,
     /// Per target slot: a rigid bone (contact with it is not compliant).
     pub rigid: Vec<bool>,
+    /// Generalised inverse mass of `point` on its target (0 on a bone),
+    /// written with `point`. Units: 1/kg.
+    pub target_w: Vec<f32>,
+    /// Whether the vertex connects at all: some target lies within reach
+    /// ([`crate::muscle::MuscleParams::contact_reach`] for muscles, any gap
+    /// for bones). A vertex out of reach keeps its constraints, switched off.
+    pub connected: Vec<bool>,
 }
 
 impl SlidingBatch {
@@ -80,6 +90,10 @@ impl SlidingBatch {
         let slot = i * self.targets + t as usize;
         let (c, n) = (self.point[i], self.normal[i]);
         let gap = self.rest_gap[slot];
+        if !gap.is_finite() {
+            // Out of the vertex's contact band: no rest gap to keep.
+            return None;
+        }
         let s = n.dot(p - c);
         if s < 0.0 && self.rest_outside[slot] {
             return Some((s - gap, n));
@@ -139,7 +153,8 @@ impl ConstraintBatch for SlidingBatch {
         let Some((c, g)) = self.value_and_gradient(i, x) else {
             return (x != start).then(|| Correction::one(0.0, particle, x));
         };
-        let mut dl = delta_lambda(c, lambda, w[k] * g.length_squared(), alpha);
+        let wk = w[k] + self.target_w[i];
+        let mut dl = delta_lambda(c, lambda, wk * g.length_squared(), alpha);
         if self.mode == SlidingMode::Contact {
             // Unilateral: total λ stays ≥ 0 (it may only push outwards).
             let total = (lambda + dl).max(0.0);

@@ -3,7 +3,10 @@
 //! ```text
 //! 1. level ℓ(v): BFS hops over mesh edges from the root vertices
 //! 2. bands S_ℓ = {v : ℓ(v) = ℓ}, split into connected components K
-//! 3. one internal point per component with |K| ≥ min_ring, at its centroid
+//! 3. one internal point per component with |K| ≥ min_ring, at its centroid,
+//!    unless the centroid lies near one of its vertices (a strip or an arc
+//!    of a ring, where bands from two roots meet: a point on the surface
+//!    holds nothing, and a zero-length link has no direction)
 //! 4. Branch edges: P(K) — P(K') for K' at ℓ−1 sharing a mesh edge with K
 //!    (across point-less levels to the nearest lower level with points);
 //!    optionally link siblings (same level, common parent or child)
@@ -148,9 +151,9 @@ impl InternalStructure {
                 .iter()
                 .flat_map(|&p| anchors[p as usize].iter().copied())
                 .collect();
-            if k.len() >= params.min_ring as usize {
-                let centroid =
-                    k.iter().map(|&v| mesh.positions[v as usize]).sum::<Vec3>() / k.len() as f32;
+            let centroid =
+                k.iter().map(|&v| mesh.positions[v as usize]).sum::<Vec3>() / k.len() as f32;
+            if k.len() >= params.min_ring as usize && surrounds(mesh, k, centroid) {
                 let id = s.points.len() as u32;
                 s.points.push(centroid);
                 s.levels.push(comp_level[c as usize]);
@@ -218,6 +221,19 @@ impl InternalStructure {
         s
     }
 }
+
+/// Whether a component's centroid lies inside it rather than on it: every
+/// vertex at least [`SURROUND`] of the mean vertex distance away. A ring's
+/// vertices are all about equally far; a strip of three vertices in a row
+/// has its centroid on the middle one.
+fn surrounds(mesh: &SurfaceMesh, component: &[u32], centroid: Vec3) -> bool {
+    let distance = |&v: &u32| mesh.positions[v as usize].distance(centroid);
+    let mean = component.iter().map(distance).sum::<f32>() / component.len() as f32;
+    component.iter().all(|v| distance(v) >= SURROUND * mean)
+}
+
+/// See [`surrounds`].
+const SURROUND: f32 = 0.3;
 
 /// Points for a point-less component (a tip): those of the *second* layer of
 /// point-bearing components by component-graph distance, or the first when
@@ -295,4 +311,31 @@ fn tangents(points: &[Vec3], levels: &[u32], edges: &[[u32; 2]]) -> Vec<Vec3> {
             (next - prev).try_normalize().unwrap_or(Vec3::X)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::builtin;
+    use std::path::Path;
+
+    #[test]
+    fn no_vertex_sits_on_its_internal_point() {
+        // P3's biceps: bands from its head and belly roots meet near the
+        // junction, where a band component was a strip whose centroid lay on
+        // a vertex (an Internal link of rest length 1e-9 m).
+        let solver = builtin("P3").unwrap().instantiate(Path::new(".")).unwrap();
+        for m in solver.muscles() {
+            let s = &m.structure;
+            let links: Vec<f32> = (0..m.surface_count)
+                .map(|v| m.rest[v].distance(s.points[s.vertex_point[v] as usize]))
+                .collect();
+            let mean = links.iter().sum::<f32>() / links.len() as f32;
+            let shortest = links.iter().copied().fold(f32::INFINITY, f32::min);
+            assert!(
+                shortest > 0.1 * mean,
+                "{}: {shortest} vs mean {mean}",
+                m.name
+            );
+        }
+    }
 }

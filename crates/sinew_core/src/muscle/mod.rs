@@ -5,6 +5,7 @@
 
 mod fiber;
 mod internal;
+mod mass;
 mod params;
 
 pub use fiber::{fiber_field, longest_axis};
@@ -113,6 +114,10 @@ pub struct SurfaceAnchor {
     pub barycentric: Vec3,
     /// Offset in the rest tangent frame (Hard only).
     pub local: Vec3,
+    /// Whether the tie holds at all: its target is a bone, or a muscle
+    /// within [`MuscleParams::contact_reach`]. A vertex with no such target
+    /// keeps its Soft and Hard constraints, switched off.
+    pub connected: bool,
 }
 
 /// The constraint batches of a muscle, one per type.
@@ -402,7 +407,7 @@ impl Muscle {
         // Particles.
         let mut rest = mesh.positions.clone();
         rest.extend_from_slice(&structure.points);
-        let w = inverse_masses(&mesh, structure.points.len(), &params, &maps);
+        let w = mass::inverse_masses(&mesh, &structure, &params, &maps);
         let nparticles = rest.len();
         let mut muscle = Self {
             name,
@@ -649,13 +654,25 @@ impl Muscle {
     }
 
     /// Recomputes the per-constraint compliances of Sliding / Soft / Hard from
-    /// type compliances and weights (`α / weight`; weight 0 disables).
+    /// type compliances and weights (`α / weight`; weight 0 disables, and so
+    /// does a vertex out of every target's reach).
     pub fn relink_weights(&mut self) {
         let comp = self.params.compliance;
         let weighted = |alpha: f32, w: f32| if w > 0.0 { alpha / w } else { f32::INFINITY };
         for i in 0..self.constraints.sliding.len() {
             let v = self.constraints.sliding.particle[i] as usize;
             let (s, o, h) = self.connection_weights(v);
+            let c = &self.constraints;
+            let on = |connected: Option<bool>, weight: f32| {
+                if connected == Some(false) {
+                    0.0
+                } else {
+                    weight
+                }
+            };
+            let s = on(c.sliding.connected.get(i).copied(), s);
+            let o = on(c.soft_anchor.get(i).map(|a| a.connected), o);
+            let h = on(c.hard_anchor.get(i).map(|a| a.connected), h);
             self.constraints.sliding.compliance[i] = weighted(comp.sliding, s);
             self.constraints.soft.compliance[i] = weighted(comp.soft, o);
             self.constraints.hard.compliance[i] = weighted(comp.hard, h);
@@ -702,52 +719,4 @@ pub fn nearest_vertex(points: &[Vec3], q: Vec3) -> u32 {
                 .total_cmp(&points[b].distance_squared(q))
         })
         .unwrap_or(0) as u32
-}
-
-fn inverse_masses(
-    mesh: &SurfaceMesh,
-    internal: usize,
-    params: &MuscleParams,
-    maps: &VertexMaps,
-) -> Vec<f32> {
-    let n = mesh.vertex_count();
-    let mut mass = match params.mass {
-        MassMode::Uniform(m) => vec![m; n + internal],
-        MassMode::Density(rho) => {
-            let total = rho as f64 * mesh.volume().abs();
-            let mut area = vec![0.0f64; n];
-            for &[a, b, c] in &mesh.triangles {
-                let (pa, pb, pc) = (
-                    mesh.positions[a as usize],
-                    mesh.positions[b as usize],
-                    mesh.positions[c as usize],
-                );
-                let t = 0.5 * (pb - pa).cross(pc - pa).length() as f64 / 3.0;
-                area[a as usize] += t;
-                area[b as usize] += t;
-                area[c as usize] += t;
-            }
-            let sum: f64 = area.iter().sum();
-            // A surface particle carries its share of the mass; internal points
-            // get the mean vertex mass on top (the medulla is inside the volume).
-            let mut m: Vec<f32> = area.iter().map(|&a| (total * a / sum) as f32).collect();
-            let mean = (total / n as f64) as f32;
-            m.resize(n + internal, mean);
-            m
-        }
-    };
-    if let Some(mult) = &maps.mass {
-        for (m, k) in mass.iter_mut().zip(mult) {
-            *m *= k.max(1e-6);
-        }
-    }
-    mass.into_iter()
-        .map(|m| {
-            if m > 0.0 && m.is_finite() {
-                1.0 / m
-            } else {
-                1.0
-            }
-        })
-        .collect()
 }

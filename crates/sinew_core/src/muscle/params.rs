@@ -98,8 +98,10 @@ impl Default for ConnectionWeights {
 pub enum MassMode {
     /// Every particle has this mass. Units: kg.
     Uniform(f32),
-    /// `ρ V_rest`, spread over the surface by one-ring area; internal points get
-    /// the mean vertex mass. Units: kg/m³. Muscle: 1060.
+    /// `ρ V_rest`, lumped as a solid's: with an internal structure, each
+    /// surface triangle's tetrahedron to the medulla gives a quarter of its
+    /// mass to each corner (see `muscle::mass`); without one, spread over the
+    /// surface by one-ring area. Units: kg/m³. Muscle: 1060.
     Density(f32),
 }
 
@@ -142,6 +144,14 @@ pub struct MuscleParams {
     pub bulge: bool,
     /// Default target-connection weights.
     pub weights: ConnectionWeights,
+    /// Contact band: the largest rest gap at which a surface vertex slides on
+    /// a target (Sliding is contact), and at which Soft and Hard tie it to
+    /// another *muscle*. Soft and Hard tie a vertex to its nearest *bone* at
+    /// any gap: a bone does not deform, so a tie to it a few centimetres
+    /// away holds. A connection with no target in its band stays switched
+    /// off. Units: m (scene units). Default: `0.003`. See ARCHITECTURE.md,
+    /// "Connections".
+    pub contact_reach: f32,
     /// Sliding behaviour. Default: [`SlidingMode::KeepGap`].
     pub sliding_mode: SlidingMode,
     /// Velocity damping per frame, `v ← v (1 − k_d)`. Range `[0, 1]`. Default: `0.05`.
@@ -168,6 +178,7 @@ impl Default for MuscleParams {
             internal_follows_activation: true,
             bulge: true,
             weights: ConnectionWeights::default(),
+            contact_reach: 0.003,
             sliding_mode: SlidingMode::default(),
             damping: 0.05,
             mass: MassMode::default(),
@@ -221,6 +232,7 @@ impl MuscleParams {
             ("weights.sliding", self.weights.sliding, 0.0, f32::INFINITY),
             ("weights.soft", self.weights.soft, 0.0, f32::INFINITY),
             ("weights.hard", self.weights.hard, 0.0, f32::INFINITY),
+            ("contact_reach", self.contact_reach, 0.0, f32::MAX),
         ];
         for (name, value, lo, hi) in checks {
             if value.is_nan() || value < lo || value > hi || value.is_infinite() {

@@ -355,7 +355,8 @@ impl ColorPlan {
     /// Hybrid (Fratarcangeli & Pellacini 2015): the thesis' per-constraint
     /// colours with at least `min_group` constraints are solved Gauss–Seidel;
     /// the constraints of the small, high-degree tail are solved together by
-    /// one Jacobi pass after them.
+    /// one Jacobi pass after them (its single-particle constraints, if any,
+    /// Gauss–Seidel just before it).
     pub fn hybrid(m: &Muscle, order: &[ConstraintKind], min_group: usize) -> Self {
         let groups = ColorGroups::greedy(m, order).groups;
         let (big, small): (Vec<_>, Vec<_>) = groups.into_iter().partition(|g| g.len() >= min_group);
@@ -459,7 +460,12 @@ impl ColorPlan {
             "{kind:?}: a constraint of type {missing:?} is not planned"
         );
         if !tail.is_empty() {
-            plan.tail = Some(JacobiState::from_parts(m, Vec::new(), tail));
+            // The tail's single-particle constraints are solved Gauss–Seidel
+            // before its Jacobi pass, as in `Jacobi` (see `jacobi`).
+            let (gauss_seidel, jacobi) = tail
+                .into_iter()
+                .partition(|c| super::jacobi::single_particle(c.kind));
+            plan.tail = Some(JacobiState::from_parts(m, gauss_seidel, jacobi));
         }
         plan.pack_segments(m, order);
         plan
@@ -683,11 +689,14 @@ mod tests {
     use crate::scene::builtin;
     use std::collections::HashSet;
 
+    /// The muscles of `scene` after one step, with a contact band wide
+    /// enough that every connection holds.
     fn muscles(scene: &str) -> Vec<Muscle> {
-        let mut solver = builtin(scene)
-            .unwrap()
-            .instantiate(std::path::Path::new("."))
-            .unwrap();
+        let mut scene = builtin(scene).unwrap();
+        for m in &mut scene.muscles {
+            m.params.contact_reach = 1.0;
+        }
+        let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
         // One step links the target connections (Sliding, Soft, Hard).
         solver.step();
         solver.muscles().to_vec()

@@ -21,6 +21,7 @@
 
 pub mod coloring;
 pub mod jacobi;
+mod link;
 mod momentum;
 pub mod stage;
 mod sweep;
@@ -145,30 +146,27 @@ pub struct SolverSettings {
     /// closest point walks over the target from last iteration's triangle
     /// (see [`crate::target`]). `1` = a full search every frame. Default: `16`.
     pub full_search_interval: u32,
-    /// Every this many frames each vertex re-chooses its closest target
-    /// among all of its muscle's targets (staggered over vertices, and always
-    /// with a full search); in between it follows the target it chose,
-    /// walking over it, and checks only the bones whose boxes it is in (it
-    /// may have entered one). `1` = every frame. Default: `4`. Measured on
-    /// one binary (1 thread; `sinew check`, worst frame, share of vertices
-    /// more than 2 mm inside a bone): `4` against `1` cut T7's closest data
-    /// from 30.1 to 27.0 ms/frame, and T5's penetration from 1.42 to 1.20 %,
-    /// T6's from 2.07 to 1.85 %.
+    /// Every this many frames each vertex re-chooses the target it slides
+    /// on among the targets within its contact band (staggered over
+    /// vertices, and always with a full search); in between it keeps its
+    /// target and checks only the bones whose boxes it is in (it may have
+    /// entered one). A vertex switches only to a target it has come nearer
+    /// to *relative to its rest gap* by a tenth of the band (see
+    /// `stage::closest_data`). `1` = every frame. Default: `4`.
     pub choose_interval: u32,
-    /// Later iterations of a frame project each vertex onto the face, edge or
-    /// corner of the triangle the walk found (a few loads) instead of
-    /// re-projecting onto the triangle. Exact while the vertex stays in that
-    /// feature's region. Default: `true`. With `choose_interval: 4` it cut
-    /// T7's closest data from 27.0 to 14.7 ms/frame (1 thread); the two
-    /// defaults together give T5 1.09 % and T6 1.82 % of vertices inside a
-    /// bone (against 1.42 and 2.07 % with neither; this setting alone: 1.67
-    /// and 2.21 %).
+    /// When `walk_every_iteration` is off, later iterations of a frame
+    /// project each vertex onto the face, edge or corner of the triangle the
+    /// first iteration's walk found (a few loads) instead of re-projecting
+    /// onto the triangle. Faster, exact while the vertex stays in that
+    /// feature's region, but the contact point then jumps at the next
+    /// frame's walk. Default: `false`.
     pub feature_contacts: bool,
-    /// Walk over the targets in every iteration. When `false` (default), the
-    /// walk runs in the first iteration of a frame and later iterations
-    /// re-project onto the triangle it found (one triangle test): within a
-    /// frame a contact point slides inside its triangle and reaches the
-    /// neighbours at the next frame.
+    /// Walk over the targets in every iteration, so the contact point slides
+    /// from triangle to triangle as the vertex does. With `false` the walk
+    /// runs in the first iteration of a frame and later iterations re-project
+    /// onto the triangle it found: the constraint then jumps from the
+    /// triangle's plane to the next triangle at the next frame, a kick that
+    /// kept T5 at rest moving at 1.2 mm/s (0.08 with walking). Default: `true`.
     pub walk_every_iteration: bool,
     /// Worker threads for closest data and projection, split by muscle
     /// (SPEC §9.1): `1` spawns none, `0` uses every core. Muscles read each
@@ -201,8 +199,8 @@ impl Default for SolverSettings {
             timers: true,
             full_search_interval: 16,
             choose_interval: 4,
-            feature_contacts: true,
-            walk_every_iteration: false,
+            feature_contacts: false,
+            walk_every_iteration: true,
             threads: 1,
             schedule: SweepSchedule::Auto,
             parallel_threshold: 8192,

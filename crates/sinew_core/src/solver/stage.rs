@@ -18,11 +18,12 @@
 //! muscle's own target order (`m.target_ids = 0..k`).
 
 use super::coloring::PlanKind;
+pub use super::link::link_muscle;
 use super::momentum::{self, RigidMomentum};
 use super::{ColorScope, SolverMethod, coloring, jacobi};
 use crate::constraints::{ConstraintBatch, ConstraintKind};
-use crate::muscle::{Muscle, SurfaceAnchor};
-use crate::target::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource, TargetSurface};
+use crate::muscle::Muscle;
+use crate::target::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use glam::{Affine3A, Vec3, Vec4};
 
 /// Starts a substep: predicts positions (gravity, damping `(1 − d)^damping_exp`),
@@ -58,6 +59,7 @@ pub fn publish(target: &mut TargetSurface, m: &Muscle, first_iteration: bool) {
     if first_iteration {
         target.update_normals();
         target.refit(false);
+        target.set_inverse_masses(&m.w[..m.surface_count]);
     }
 }
 
@@ -167,6 +169,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
         target_ids: &m.target_ids,
         targets,
         search,
+        reach: m.params.contact_reach,
     };
     let run = SlidingRun::of(&mut c.sliding, &mut m.warm);
     if search.parallel && run.particle.len() > CLOSEST_CHUNK {
@@ -185,6 +188,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
             let t = targets.target(m.target_ids[a.target as usize]);
             if moved(t) {
                 c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
+                c.soft.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
             }
         }
     }
@@ -193,6 +197,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
             let t = targets.target(m.target_ids[a.target as usize]);
             if moved(t) {
                 c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+                c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
             }
         }
     }
@@ -202,7 +207,10 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
 /// run, and its warm cells (`targets` per constraint).
 struct SlidingRun<'a> {
     particle: &'a [u32],
+    connected: &'a [bool],
+    rest_gap: &'a [f32],
     point: &'a mut [Vec3],
+    target_w: &'a mut [f32],
     normal: &'a mut [Vec3],
     target: &'a mut [u32],
     triangle: &'a mut [u32],
@@ -216,7 +224,10 @@ impl<'a> SlidingRun<'a> {
     fn of(s: &'a mut crate::constraints::SlidingBatch, warm: &'a mut [u32]) -> Self {
         Self {
             particle: &s.particle,
+            connected: &s.connected,
+            rest_gap: &s.rest_gap,
             point: &mut s.point,
+            target_w: &mut s.target_w,
             normal: &mut s.normal,
             target: &mut s.target,
             triangle: &mut s.triangle,
@@ -234,13 +245,19 @@ impl<'a> SlidingRun<'a> {
             *slice = tail;
             head
         }
+        fn front_ref<'a, T>(slice: &mut &'a [T], k: usize) -> &'a [T] {
+            let (head, tail) = slice.split_at(k);
+            *slice = tail;
+            head
+        }
         let mut runs = Vec::new();
         while self.particle.len() > k {
-            let (particle, rest) = self.particle.split_at(k);
-            self.particle = rest;
             runs.push(Self {
-                particle,
+                particle: front_ref(&mut self.particle, k),
+                connected: front_ref(&mut self.connected, k),
+                rest_gap: front_ref(&mut self.rest_gap, k * targets),
                 point: front(&mut self.point, k),
+                target_w: front(&mut self.target_w, k),
                 normal: front(&mut self.normal, k),
                 target: front(&mut self.target, k),
                 triangle: front(&mut self.triangle, k),
@@ -254,12 +271,44 @@ impl<'a> SlidingRun<'a> {
     }
 }
 
+/// How strongly a target claims a vertex's Sliding constraint. A bone the
+/// vertex is inside of claims it first (the deepest first), so Sliding
+/// pushes it out even when a muscle is nearer; then the target the vertex
+/// has come nearest to *relative to its rest gap* (`distance − rest gap`):
+/// at rest every target's claim is 0 and the vertex keeps the one it
+/// rests on. Ranking by distance alone switched a vertex between targets
+/// with different rest gaps as it sagged, a jump in its constraint every
+/// `choose_interval` frames (the tip of T5's medial triceps held a 4-frame
+/// limit cycle).
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+enum Claim {
+    /// Inside a bone: minus the depth.
+    InsideBone(f32),
+    /// Outside: distance − rest gap.
+    Gap(f32),
+}
+
+impl Claim {
+    /// Whether this claim takes the vertex from `held`: a deeper bone, any
+    /// bone over a gap, or a gap smaller by more than a tenth of the
+    /// contact band (so that near-ties keep the target the vertex has).
+    fn beats(&self, held: &Claim, reach: f32) -> bool {
+        match (*self, *held) {
+            (Claim::Gap(a), Claim::Gap(b)) => a < b - 0.1 * reach,
+            (a, b) => a < b,
+        }
+    }
+}
+
 /// What the Sliding part of closest data reads.
 struct SlidingInput<'a, T: ?Sized> {
     p: &'a [Vec3],
     target_ids: &'a [usize],
     targets: &'a T,
     search: ClosestSchedule,
+    /// The muscle's contact reach: a target farther than this at rest is
+    /// never chosen.
+    reach: f32,
 }
 
 impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
@@ -267,7 +316,10 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
     fn closest(&self, run: SlidingRun) {
         let SlidingRun {
             particle,
+            connected,
+            rest_gap,
             point,
+            target_w,
             normal,
             target,
             triangle,
@@ -277,64 +329,61 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
         for i in 0..particle.len() {
+            if !connected[i] {
+                continue;
+            }
             let v = particle[i] as usize;
             let q = self.p[v];
-            // (rank, distance, slot): the rank is the distance, except that a
-            // vertex inside a rigid target (a bone) ranks it first, so Sliding
-            // pushes it out of the bone even when a neighbouring muscle is nearer.
-            let mut best: Option<(f32, ClosestHit, u32)> = None;
-            // Last iteration's target first; every other search is bounded by
-            // the best distance so far (Sliding only needs the closest
-            // target). The closest target is re-chosen in the first iteration
-            // of one frame in `choose_interval` (staggered over vertices);
-            // otherwise the vertex follows the chosen one only.
             let first = target[i] as usize;
             let choose = search.chooses(v) || first >= nt;
             // Later iterations project the vertex onto the feature (face
             // plane, edge or corner) of the triangle the walk found: the
-            // closest point while the vertex stays in that feature's region,
-            // which within a frame it nearly always does, and the next
-            // frame's walk moves it on. The normal keeps its value, as a
-            // muscle target's normals do within a frame.
+            // closest point while the vertex stays in that feature's region.
             if !choose && !search.walk && search.feature_contacts {
                 let surface = self.targets.target(self.target_ids[first]);
                 point[i] = surface.on_feature(q, triangle[i], barycentric[i], plane[i]);
                 continue;
             }
-            // A vertex that keeps its target still checks, in the first
-            // iteration of a frame, every bone whose box it is in: it may
-            // have entered that bone since it last chose.
+            // Last iteration's target first. The vertex re-chooses in the
+            // first iteration of one frame in `choose_interval` (staggered
+            // over vertices); in between it keeps its target but, in the
+            // first iteration of a frame, still checks every bone whose box
+            // it is in (it may have entered one).
             let bones_only = !choose;
             let order = (first < nt)
                 .then_some(first)
                 .into_iter()
                 .chain((0..nt).filter(move |&s| (choose || search.active) && s != first));
             let full = search.wants(v);
+            let mut best: Option<(Claim, ClosestHit, u32)> = None;
             for slot in order {
-                let cell = &mut warm[i * nt + slot];
-                let last = (*cell != NO_TRIANGLE).then_some(*cell);
+                let gap = rest_gap[i * nt + slot];
                 let surface = self.targets.target(self.target_ids[slot]);
-                if bones_only && slot != first && surface.is_deforming() {
+                // A target out of the vertex's contact band at rest (or
+                // across a seam, see `link_muscle`) is never chosen.
+                if gap > self.reach || bones_only && slot != first && surface.is_deforming() {
                     continue;
                 }
-                // The first target searched needs no bound (and no box test).
-                let bound = match best {
+                // Only a hit nearer than `bound` can claim the vertex.
+                let bound = match &best {
                     None => f32::MAX,
-                    Some((rank, ref hit, _)) => {
-                        let d = hit.distance;
+                    Some((claim, _, _)) => {
                         let lower = surface.lower_bound(q);
                         // Inside a bone's box the vertex may be inside the
-                        // bone: search it whatever the other targets' distances.
-                        let may_be_inside = lower == 0.0 && !surface.is_deforming();
-                        match rank >= 0.0 {
-                            _ if may_be_inside => f32::MAX,
-                            _ if bones_only => continue,
-                            true if lower >= d => continue,
-                            true => d,
-                            false => continue,
+                        // bone, which claims it whatever the others do.
+                        if lower == 0.0 && !surface.is_deforming() {
+                            f32::MAX
+                        } else {
+                            match *claim {
+                                Claim::InsideBone(_) => continue,
+                                Claim::Gap(g) if lower >= g + gap => continue,
+                                Claim::Gap(g) => g + gap,
+                            }
                         }
                     }
                 };
+                let cell = &mut warm[i * nt + slot];
+                let last = (*cell != NO_TRIANGLE).then_some(*cell);
                 let local = last.filter(|_| !full).and_then(|t| {
                     if search.walk {
                         surface.walk(q, t)
@@ -342,36 +391,34 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         surface.on_triangle(q, t)
                     }
                 });
-                let hit = match local {
-                    Some(hit) => Some(hit),
-                    None => surface.closest_within(q, last, bound),
+                let Some(hit) = local.or_else(|| surface.closest_within(q, last, bound)) else {
+                    continue;
                 };
-                if let Some(hit) = hit {
-                    *cell = hit.triangle;
-                    let inside_bone = hit.signed_distance < 0.0 && !surface.is_deforming();
-                    let rank = if inside_bone {
-                        -hit.distance - 1.0
-                    } else {
-                        hit.distance
-                    };
-                    if best.is_none_or(|(r, _, _)| rank < r) {
-                        best = Some((rank, hit, slot as u32));
-                    }
+                *cell = hit.triangle;
+                let claim = if hit.signed_distance < 0.0 && !surface.is_deforming() {
+                    Claim::InsideBone(-hit.distance)
+                } else {
+                    Claim::Gap(hit.distance - gap)
+                };
+                if best
+                    .as_ref()
+                    .is_none_or(|(b, _, _)| claim.beats(b, self.reach))
+                {
+                    best = Some((claim, hit, slot as u32));
                 }
             }
             match best {
                 Some((_, hit, slot)) => {
+                    let surface = self.targets.target(self.target_ids[slot as usize]);
                     point[i] = hit.point;
+                    target_w[i] = surface.point_inverse_mass(hit.triangle, hit.barycentric);
                     normal[i] = hit.normal;
                     triangle[i] = hit.triangle;
                     barycentric[i] = hit.barycentric;
                     // Only the feature projection reads the plane; it runs
                     // after a first iteration that comes here.
                     if search.feature_contacts {
-                        plane[i] = self
-                            .targets
-                            .target(self.target_ids[slot as usize])
-                            .face_normal(hit.triangle);
+                        plane[i] = surface.face_normal(hit.triangle);
                     }
                     target[i] = slot;
                 }
@@ -573,106 +620,4 @@ pub fn project(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
             }
         }
     }
-}
-
-/// Creates one Sliding, Soft and Hard constraint per surface vertex against
-/// the muscle's targets, from the current positions (SPEC §5.7–5.9).
-pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
-    let nt = m.target_ids.len();
-    let n = m.surface_count;
-    let c = &mut m.constraints;
-    c.sliding = Default::default();
-    c.soft = Default::default();
-    c.hard = Default::default();
-    c.soft_anchor.clear();
-    c.hard_anchor.clear();
-    m.colors = None;
-    m.jacobi = None;
-    m.warm = vec![NO_TRIANGLE; n * nt];
-    m.clearance = vec![Vec4::ZERO; n * nt];
-    m.bone_margin = vec![Vec4::ZERO; n];
-    if nt == 0 {
-        return;
-    }
-    c.sliding.targets = nt;
-    c.sliding.mode = m.params.sliding_mode;
-    c.sliding.rigid = m
-        .target_ids
-        .iter()
-        .map(|&t| {
-            !targets.target(t).is_deforming()
-                && matches!(targets.target(t).source, TargetSource::Bone(_))
-        })
-        .collect();
-    for v in 0..n {
-        let q = m.x[v];
-        let mut best: Option<(f32, u32, ClosestHit)> = None;
-        for (slot, &tid) in m.target_ids.iter().enumerate() {
-            let hit = targets.target(tid).closest(q, None);
-            m.warm[v * nt + slot] = hit.map_or(NO_TRIANGLE, |h| h.triangle);
-            match hit {
-                Some(h) => {
-                    c.sliding.rest_gap.push(h.distance);
-                    c.sliding.rest_outside.push(!h.is_inside());
-                    if best.is_none_or(|(d, _, _)| h.distance < d) {
-                        best = Some((h.distance, slot as u32, h));
-                    }
-                }
-                None => {
-                    c.sliding.rest_gap.push(0.0);
-                    c.sliding.rest_outside.push(true);
-                }
-            }
-        }
-        let Some((distance, slot, hit)) = best else {
-            continue;
-        };
-        let target = targets.target(m.target_ids[slot as usize]);
-        c.sliding.particle.push(v as u32);
-        c.sliding.compliance.push(0.0);
-        c.sliding.point.push(hit.point);
-        c.sliding.normal.push(hit.normal);
-        c.sliding.triangle.push(hit.triangle);
-        c.sliding.barycentric.push(hit.barycentric);
-        c.sliding.plane.push(target.face_normal(hit.triangle));
-        c.sliding.target.push(slot);
-        c.sliding.lambda.push(0.0);
-        c.soft.push(v as u32, hit.point, distance, 0.0);
-        c.soft_anchor.push(SurfaceAnchor {
-            target: slot,
-            triangle: hit.triangle,
-            barycentric: hit.barycentric,
-            local: Vec3::ZERO,
-        });
-        let frame = target.frame_at(hit.triangle, hit.barycentric);
-        let local = Vec3::from(frame.basis.transpose() * glam::Vec3A::from(q - frame.origin));
-        c.hard.push(v as u32, q, 0.0, 0.0);
-        c.hard_anchor.push(SurfaceAnchor {
-            target: slot,
-            triangle: hit.triangle,
-            barycentric: hit.barycentric,
-            local,
-        });
-    }
-    // rest_gap / rest_outside were pushed for every vertex; keep them aligned
-    // with the constraints (vertices without any hit have no constraint).
-    if c.sliding.len() != n {
-        let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v as usize).collect();
-        let gap = std::mem::take(&mut c.sliding.rest_gap);
-        let out = std::mem::take(&mut c.sliding.rest_outside);
-        for v in keep {
-            c.sliding
-                .rest_gap
-                .extend_from_slice(&gap[v * nt..(v + 1) * nt]);
-            c.sliding
-                .rest_outside
-                .extend_from_slice(&out[v * nt..(v + 1) * nt]);
-        }
-        let all = std::mem::take(&mut m.warm);
-        for &v in &c.sliding.particle {
-            m.warm
-                .extend_from_slice(&all[v as usize * nt..(v as usize + 1) * nt]);
-        }
-    }
-    m.relink_weights();
 }

@@ -6,12 +6,12 @@ use crate::constraints::ConstraintKind as K;
 use crate::scene::builtin;
 
 /// P1 after one step (goals of Soft/Hard/Sliding filled), predictions
-/// perturbed so that every constraint is violated.
+/// perturbed so that every constraint is violated. The contact band spans
+/// the whole oval, so every vertex slides on the plane.
 fn violated_p1() -> (Solver, Muscle) {
-    let mut solver = builtin("P1")
-        .unwrap()
-        .instantiate(std::path::Path::new("."))
-        .unwrap();
+    let mut scene = builtin("P1").unwrap();
+    scene.muscles[0].params.contact_reach = 1.0;
+    let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
     solver.step();
     let mut m = solver.muscles()[0].clone();
     for (i, p) in m.p.iter_mut().enumerate() {
@@ -553,9 +553,10 @@ fn global_colouring_and_hybrid_contract_t1_like_sequential() {
         },
     ] {
         let length = t1_length(method, 45);
+        let ratio = contraction(length) / contraction(reference);
         assert!(
-            (length - reference).abs() / reference < 0.05,
-            "{method:?}: {length} vs {reference}"
+            (0.85..1.15).contains(&ratio),
+            "{method:?}: {length} vs {reference} (contraction ×{ratio})"
         );
     }
     let settings = SolverSettings {
@@ -566,6 +567,14 @@ fn global_colouring_and_hybrid_contract_t1_like_sequential() {
         ..Default::default()
     };
     assert!(Solver::new(settings).is_err());
+}
+
+/// How much the T1 oval (0.12 m at rest) has shortened at `length`. The
+/// methods' fixed points differ (the thesis saw it too: colour order
+/// changes which constraint has the last word), so methods are compared by
+/// contraction within 15 %.
+fn contraction(length: f32) -> f32 {
+    0.12 - length
 }
 
 /// The T1 oval's length along its fibres after `frames` frames with `method`.
@@ -590,9 +599,10 @@ fn colored_contracts_t1_like_sequential() {
         },
         45,
     );
+    let ratio = contraction(coloured) / contraction(reference);
     assert!(
-        (coloured - reference).abs() / reference < 0.03,
-        "{coloured} vs {reference}"
+        (0.85..1.15).contains(&ratio),
+        "{coloured} vs {reference} (contraction ×{ratio})"
     );
 }
 

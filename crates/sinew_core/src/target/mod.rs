@@ -144,6 +144,9 @@ pub struct TargetSurface {
     neighbor_offsets: Vec<u32>,
     /// CSR entries of each vertex's neighbours.
     neighbors: Vec<u32>,
+    /// Per vertex of a deforming target, its particle's inverse mass (see
+    /// [`TargetSurface::point_inverse_mass`]); empty for rigid targets.
+    inverse_mass: Vec<f32>,
 }
 
 impl std::fmt::Debug for TargetSurface {
@@ -242,7 +245,31 @@ impl TargetSurface {
             across_edge,
             neighbor_offsets,
             neighbors,
+            inverse_mass: Vec::new(),
         }
+    }
+
+    /// Sets the inverse masses of a deforming target's vertices (its
+    /// muscle's particles), for [`TargetSurface::point_inverse_mass`].
+    pub fn set_inverse_masses(&mut self, inverse_mass: &[f32]) {
+        self.inverse_mass.clear();
+        self.inverse_mass.extend_from_slice(inverse_mass);
+    }
+
+    /// The generalised inverse mass `Σ βₖ² wₖ` of the surface point with
+    /// barycentric coordinates `barycentric` in `triangle`: how easily the
+    /// target gives way there. 0 for a rigid target (a bone) or before
+    /// [`TargetSurface::set_inverse_masses`].
+    #[inline]
+    pub fn point_inverse_mass(&self, triangle: u32, barycentric: Vec3) -> f32 {
+        if self.inverse_mass.is_empty() {
+            return 0.0;
+        }
+        let [a, b, c] = self.triangles[triangle as usize];
+        let w = &self.inverse_mass;
+        barycentric.x * barycentric.x * w[a as usize]
+            + barycentric.y * barycentric.y * w[b as usize]
+            + barycentric.z * barycentric.z * w[c as usize]
     }
 
     /// Triangles around vertex `v`.

@@ -1,0 +1,169 @@
+//! Target connections: one Sliding, Soft and Hard constraint per surface
+//! vertex (SPEC §5.7–5.9, the thesis' counts), and which of them hold.
+//!
+//! ```text
+//! Sliding (contact)   the nearest target within contact_reach at rest
+//! Soft, Hard (tie)    the nearest bone at any gap, or a muscle within reach
+//! muscles             only where the vertex and its one-ring lie outside
+//!                     the other muscle at rest
+//! ```
+//!
+//! A connection with no such target is made to the nearest target all the
+//! same and switched off (infinite compliance), so the counts stay the
+//! thesis'. Why each rule (measured with `sinew check`; see ARCHITECTURE.md,
+//! "Connections"):
+//!
+//! - *Sliding is contact.* A vertex centimetres from a bone keeps that gap
+//!   over the bone's distance field, whose closest point jumps across the
+//!   bone's medial axis; T5 with Sliding on bones at any gap never settled.
+//! - *Ties to a muscle are short.* A Hard goal sits in the frame of a small
+//!   triangle of the other muscle, so the goal moves by the lever arm times
+//!   that triangle's every rotation, and the other muscle's goals follow
+//!   this one's: P3, tied at up to 5 cm, crumpled into shards.
+//! - *No ties across a seam.* Imported muscles overlap (CORB has 118 of 162
+//!   vertices inside DELT2): a vertex inside another muscle, or next to where
+//!   the two surfaces cross, cannot keep a gap both muscles agree on.
+
+use crate::muscle::{Muscle, SurfaceAnchor};
+use crate::target::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource};
+use glam::{Vec3, Vec4};
+
+/// A target slot and the closest point on it.
+type Candidate = (u32, ClosestHit);
+
+/// Creates one Sliding, Soft and Hard constraint per surface vertex against
+/// the muscle's targets, from the current positions (module docs).
+pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
+    let nt = m.target_ids.len();
+    let n = m.surface_count;
+    let c = &mut m.constraints;
+    c.sliding = Default::default();
+    c.soft = Default::default();
+    c.hard = Default::default();
+    c.soft_anchor.clear();
+    c.hard_anchor.clear();
+    m.colors = None;
+    m.jacobi = None;
+    m.warm = vec![NO_TRIANGLE; n * nt];
+    m.clearance = vec![Vec4::ZERO; n * nt];
+    m.bone_margin = vec![Vec4::ZERO; n];
+    if nt == 0 {
+        return;
+    }
+    let surfaces: Vec<_> = m.target_ids.iter().map(|&t| targets.target(t)).collect();
+    c.sliding.targets = nt;
+    c.sliding.mode = m.params.sliding_mode;
+    c.sliding.rigid = surfaces
+        .iter()
+        .map(|t| !t.is_deforming() && matches!(t.source, TargetSource::Bone(_)))
+        .collect();
+    let hits: Vec<Option<ClosestHit>> = (0..n * nt)
+        .map(|cell| surfaces[cell % nt].closest(m.x[cell / nt], None))
+        .collect();
+    let reach = m.params.contact_reach;
+    // Whether vertex `v` may touch target `slot`: within reach, and for a
+    // muscle, outside it at rest with every neighbour.
+    let outside = |v: usize, slot: usize| hits[v * nt + slot].is_none_or(|h| !h.is_inside());
+    let touches = |v: usize, slot: usize| {
+        let within = hits[v * nt + slot].is_some_and(|h| h.distance <= reach);
+        within
+            && (!surfaces[slot].is_deforming()
+                || outside(v, slot)
+                    && m.mesh
+                        .neighbors_of(v)
+                        .iter()
+                        .all(|&u| outside(u as usize, slot)))
+    };
+    for v in 0..n {
+        let q = m.x[v];
+        let mut nearest: Option<Candidate> = None;
+        let mut contact: Option<Candidate> = None;
+        let mut tie: Option<Candidate> = None;
+        for (slot, surface) in surfaces.iter().enumerate() {
+            let cell = v * nt + slot;
+            m.warm[cell] = hits[cell].map_or(NO_TRIANGLE, |h| h.triangle);
+            let Some(h) = hits[cell] else {
+                c.sliding.rest_gap.push(f32::INFINITY);
+                c.sliding.rest_outside.push(true);
+                continue;
+            };
+            let touching = touches(v, slot);
+            // Sliding never chooses a target out of its band (see
+            // `SlidingBatch::rest_gap`).
+            c.sliding
+                .rest_gap
+                .push(if touching { h.distance } else { f32::INFINITY });
+            c.sliding.rest_outside.push(!h.is_inside());
+            let candidate = Some((slot as u32, h));
+            let nearer =
+                |best: &Option<Candidate>| best.is_none_or(|(_, b)| h.distance < b.distance);
+            if nearer(&nearest) {
+                nearest = candidate;
+            }
+            if touching && nearer(&contact) {
+                contact = candidate;
+            }
+            if (touching || !surface.is_deforming()) && nearer(&tie) {
+                tie = candidate;
+            }
+        }
+        let Some(nearest) = nearest else {
+            continue;
+        };
+        let (slot, hit) = contact.unwrap_or(nearest);
+        let target = surfaces[slot as usize];
+        let s = &mut c.sliding;
+        s.particle.push(v as u32);
+        s.connected.push(contact.is_some());
+        s.compliance.push(0.0);
+        s.point.push(hit.point);
+        s.target_w
+            .push(target.point_inverse_mass(hit.triangle, hit.barycentric));
+        s.normal.push(hit.normal);
+        s.triangle.push(hit.triangle);
+        s.barycentric.push(hit.barycentric);
+        s.plane.push(target.face_normal(hit.triangle));
+        s.target.push(slot);
+        s.lambda.push(0.0);
+        let (slot, hit) = tie.unwrap_or(nearest);
+        let target = surfaces[slot as usize];
+        let anchor = SurfaceAnchor {
+            target: slot,
+            triangle: hit.triangle,
+            barycentric: hit.barycentric,
+            local: Vec3::ZERO,
+            connected: tie.is_some(),
+        };
+        let target_w = target.point_inverse_mass(hit.triangle, hit.barycentric);
+        c.soft.push(v as u32, hit.point, hit.distance, 0.0);
+        c.soft_anchor.push(anchor);
+        let frame = target.frame_at(hit.triangle, hit.barycentric);
+        let local = Vec3::from(frame.basis.transpose() * glam::Vec3A::from(q - frame.origin));
+        c.hard.push(v as u32, q, 0.0, 0.0);
+        c.hard_anchor.push(SurfaceAnchor { local, ..anchor });
+        if let (Some(s), Some(h)) = (c.soft.target_w.last_mut(), c.hard.target_w.last_mut()) {
+            (*s, *h) = (target_w, target_w);
+        }
+    }
+    // rest_gap / rest_outside were pushed for every vertex; keep them aligned
+    // with the constraints (vertices without any hit have no constraint).
+    if c.sliding.len() != n {
+        let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v as usize).collect();
+        let gap = std::mem::take(&mut c.sliding.rest_gap);
+        let out = std::mem::take(&mut c.sliding.rest_outside);
+        for v in keep {
+            c.sliding
+                .rest_gap
+                .extend_from_slice(&gap[v * nt..(v + 1) * nt]);
+            c.sliding
+                .rest_outside
+                .extend_from_slice(&out[v * nt..(v + 1) * nt]);
+        }
+        let all = std::mem::take(&mut m.warm);
+        for &v in &c.sliding.particle {
+            m.warm
+                .extend_from_slice(&all[v as usize * nt..(v as usize + 1) * nt]);
+        }
+    }
+    m.relink_weights();
+}
