@@ -118,9 +118,10 @@ pub struct SinewSettings {
     pub full_search_interval: u32,
     /// Frames between two choices of a vertex's closest target. Default `4`.
     pub choose_interval: u32,
-    /// Later iterations project onto the feature the walk found. Default `true`.
+    /// Without `walk_every_iteration`, later iterations project onto the
+    /// feature the walk found. Default `false`.
     pub feature_contacts: bool,
-    /// Walk over the targets in every iteration. Default `false`.
+    /// Walk over the targets in every iteration. Default `true`.
     pub walk_every_iteration: bool,
     /// Measure per-block time into [`SinewTimings`]. Default `true`.
     pub timers: bool,
