@@ -10,12 +10,12 @@
 use crate::components::*;
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
+use sinew_core::closest::{TargetSource, TargetSurface};
 use sinew_core::glam::Affine3A;
 use sinew_core::mesh::{LoadOptions, SurfaceMesh};
 use sinew_core::muscle::{
     AttachmentDesc, Muscle as CoreMuscle, MuscleDesc, MuscleParams, Roots, TargetRef,
 };
-use sinew_core::target::{TargetSource, TargetSurface};
 use std::path::PathBuf;
 
 /// Where a muscle's surface comes from.

@@ -3,11 +3,11 @@
 
 use bevy::prelude::*;
 use sinew_core::animation::{Curve, TransformTrack};
+use sinew_core::closest::TargetSurface;
 use sinew_core::constraints::FiberMode as CoreFiberMode;
 use sinew_core::muscle::{Compliances, Muscle as CoreMuscle, MuscleParams};
 use sinew_core::sensor::ActivationRig;
 use sinew_core::skeleton::SkeletonRig;
-use sinew_core::target::TargetSurface;
 use sinew_core::{RigidMomentum, glam::Affine3A};
 
 /// A bone: a kinematic body muscles attach to and slide on. Its pose is its

@@ -9,9 +9,9 @@ use crate::{SinewIterationSchedule, SinewSubstepSchedule};
 use bevy::prelude::*;
 use sinew_core::SolverSettings;
 use sinew_core::animation::interpolate_rigid;
+use sinew_core::closest::TargetSurface;
 use sinew_core::glam::Affine3A;
 use sinew_core::solver::stage;
-use sinew_core::target::TargetSurface;
 use std::time::{Duration, Instant};
 
 /// What the step in progress is doing: the settings it runs with, the time

@@ -4,8 +4,8 @@
 
 use crate::commands::load_solver;
 use sinew_core::Solver;
+use sinew_core::closest::TargetSource;
 use sinew_core::glam::{Mat3, Vec2, Vec3};
-use sinew_core::target::TargetSource;
 use std::error::Error;
 use std::path::Path;
 use std::process::ExitCode;

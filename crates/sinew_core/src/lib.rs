@@ -27,7 +27,7 @@
 //! | [`mesh`] | OBJ/STL loading, welding, validation, volume, primitives |
 //! | [`muscle`] | internal structure, fibres, masses, the muscle's own constraints |
 //! | [`constraints`] | the nine constraint types and the XPBD update |
-//! | [`target`] | bones / planes / muscles as targets, closest data |
+//! | [`closest`] | target surfaces (bones, planes, muscles) and closest-point queries |
 //! | [`solver`] | the frame loop, substeps, timers |
 //! | [`scene`] | the RON scene format and the reference scenes P1, P2, T1, P3 |
 //! | [`animation`] | activation curves and bone tracks |
@@ -41,6 +41,7 @@
 
 pub mod analysis;
 pub mod animation;
+pub mod closest;
 pub mod constraints;
 pub mod error;
 pub mod import;
@@ -50,7 +51,6 @@ pub mod scene;
 pub mod sensor;
 pub mod skeleton;
 pub mod solver;
-pub mod target;
 
 pub use error::{BuildError, ImportError, MeshError, SceneError};
 pub use glam;

@@ -14,8 +14,8 @@ pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
 pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use verdict::{Thresholds, Verdict};
 
+use crate::closest::TargetSource;
 use crate::solver::Solver;
-use crate::target::TargetSource;
 use glam::Vec3;
 
 /// Area of the cross-section of a closed, outward-oriented triangle mesh by

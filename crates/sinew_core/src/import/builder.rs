@@ -13,10 +13,10 @@
 //! - The two tips are single pole vertices on the first and last path points:
 //!   they are the roots of the internal structure, so it runs along the path.
 
+use crate::closest::TargetSurface;
 use crate::error::ImportError;
 use crate::mesh::SurfaceMesh;
 use crate::mesh::primitives::{oriented_outward, perpendicular_basis, spindle, tube};
-use crate::target::TargetSurface;
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{PI, TAU};
@@ -451,7 +451,7 @@ mod tests {
         .unwrap();
         let target = TargetSurface::new(
             "bone",
-            crate::target::TargetSource::Bone(0),
+            crate::closest::TargetSource::Bone(0),
             bone.positions.clone(),
             bone.triangles.clone(),
         );

@@ -15,6 +15,7 @@ pub mod builder;
 pub mod mjcf;
 
 use crate::animation::Curve;
+use crate::closest::{TargetSource, TargetSurface};
 use crate::error::ImportError;
 use crate::mesh::{LoadOptions, SurfaceMesh, load_mesh};
 use crate::muscle::{MuscleParams, Roots, VertexMaps};
@@ -22,7 +23,6 @@ use crate::scene::{AttachmentSpec, BoneShape, BoneSpec, MeshSource, MuscleSpec, 
 use crate::sensor::{ActivationLayer, SensorSpec};
 use crate::skeleton::{BodySpec, JointMotion, Skeleton, SkeletonRig};
 use crate::solver::SolverSettings;
-use crate::target::{TargetSource, TargetSurface};
 use builder::{SweepOptions, push_out_of_bones, sweep_path_clear_of};
 use glam::{Affine3A, Quat, Vec3};
 use mjcf::MjcfModel;

@@ -257,7 +257,7 @@ pub struct Muscle {
     /// Constraint batches.
     pub constraints: MuscleConstraints,
     /// The last closest triangle per (Sliding constraint, target slot),
-    /// `warm[i * targets + t]`, or [`crate::target::NO_TRIANGLE`]: where the next search
+    /// `warm[i * targets + t]`, or [`crate::closest::NO_TRIANGLE`]: where the next search
     /// of that target starts (4 bytes a cell keeps the full body's table in
     /// cache).
     pub warm: Vec<u32>,

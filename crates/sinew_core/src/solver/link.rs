@@ -24,8 +24,8 @@
 //!   vertices inside DELT2): a vertex inside another muscle, or next to where
 //!   the two surfaces cross, cannot keep a gap both muscles agree on.
 
+use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource};
 use crate::muscle::{Muscle, SurfaceAnchor};
-use crate::target::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource};
 use glam::{Vec3, Vec4};
 
 /// A target slot and the closest point on it.

@@ -38,13 +38,13 @@ pub use timings::StepTimings;
 use timings::{Stopwatch, TaskSplit};
 
 use crate::animation::{Curve, TransformTrack, interpolate_rigid};
+use crate::closest::{TargetSource, TargetSurface};
 use crate::constraints::ConstraintKind;
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use crate::muscle::{Muscle, MuscleDesc, TargetRef};
 use crate::sensor::ActivationRig;
 use crate::skeleton::SkeletonRig;
-use crate::target::{TargetSource, TargetSurface};
 use glam::{Affine3A, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -144,7 +144,7 @@ pub struct SolverSettings {
     /// Every this many frames each vertex runs the full (BVH) closest-point
     /// search on each target, staggered over vertices; in between, the
     /// closest point walks over the target from last iteration's triangle
-    /// (see [`crate::target`]). `1` = a full search every frame. Default: `16`.
+    /// (see [`crate::closest`]). `1` = a full search every frame. Default: `16`.
     pub full_search_interval: u32,
     /// Every this many frames each vertex re-chooses the target it slides
     /// on among the targets within its contact band (staggered over

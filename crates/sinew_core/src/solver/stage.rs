@@ -21,9 +21,9 @@ use super::coloring::PlanKind;
 pub use super::link::link_muscle;
 use super::momentum::{self, RigidMomentum};
 use super::{ColorScope, SolverMethod, coloring, jacobi};
+use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use crate::constraints::{ConstraintBatch, ConstraintKind};
 use crate::muscle::Muscle;
-use crate::target::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use glam::{Affine3A, Vec3, Vec4};
 
 /// Starts a substep: predicts positions (gravity, damping `(1 − d)^damping_exp`),
