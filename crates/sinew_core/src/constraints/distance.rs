@@ -27,7 +27,7 @@
 //! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
 //! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
-use super::{ConstraintBatch, Correction, Particles, delta_lambda};
+use super::{ConstraintBatch, Correction, Gathered, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -179,30 +179,28 @@ impl ConstraintBatch for DistanceBatch {
     }
 
     #[inline(always)]
-    fn correction_with<P: Particles + ?Sized>(
+    fn correction_of(
         &self,
         i: usize,
-        [a, b]: [u32; 2],
         lambda: f32,
-        p: &P,
-        w: &[f32],
+        Gathered {
+            at: [pa, pb],
+            w: [wa, wb],
+        }: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction> {
         let alpha = self.compliance * inv_dt2;
-        let (ia, ib) = (a as usize, b as usize);
-        let (pa, pb) = (p.at(ia), p.at(ib));
         let d = pa - pb;
         let len = d.length();
         if len < 1e-9 {
             return None;
         }
-        let (wa, wb) = (w[ia], w[ib]);
         let dl = delta_lambda(len - self.rest[i], lambda, wa + wb, alpha);
         let n = d * (dl / len);
         let mut to_a = pa;
         to_a += wa * n;
         let mut to_b = pb;
         to_b -= wb * n;
-        Some(Correction::two(dl, (a, to_a), (b, to_b)))
+        Some(Correction::two(dl, to_a, to_b))
     }
 }

@@ -135,64 +135,75 @@ impl std::ops::AddAssign for ConstraintCounts {
 }
 
 /// The outcome of projecting one constraint, computed without writing: the
-/// multiplier increment and the new positions of the (at most two) particles
-/// it moves. Gauss–Seidel commits it at once; a colour group computes all its
-/// corrections first (in parallel) and then commits them, which gives the
-/// same bits because the group's constraints share no particle.
+/// multiplier increment and the new positions of the (at most two)
+/// particles it moves, in the slot order of [`ConstraintBatch::particles`].
+/// Gauss–Seidel commits it at once; a colour sweep writes it where the
+/// plan says the constraint's particles are; Jacobi gathers it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Correction {
     /// Multiplier increment.
     pub dlambda: f32,
-    /// `(particle, new position)`; the first `count` entries are used.
-    pub moves: [(u32, Vec3); 2],
-    /// Number of particles moved.
+    /// New position per slot; the first `count` are used.
+    pub to: [Vec3; 2],
+    /// Number of particles moved (1 or 2).
     pub count: u8,
 }
 
 impl Correction {
     /// One particle moved.
-    pub fn one(dlambda: f32, particle: u32, to: Vec3) -> Self {
+    pub fn one(dlambda: f32, to: Vec3) -> Self {
         Self {
             dlambda,
-            moves: [(particle, to), (particle, to)],
+            to: [to, to],
             count: 1,
         }
     }
 
     /// Two particles moved.
-    pub fn two(dlambda: f32, a: (u32, Vec3), b: (u32, Vec3)) -> Self {
+    pub fn two(dlambda: f32, a: Vec3, b: Vec3) -> Self {
         Self {
             dlambda,
-            moves: [a, b],
+            to: [a, b],
             count: 2,
         }
     }
 
-    /// Writes the new positions.
-    pub fn write(&self, p: &mut [Vec3]) {
-        for &(k, x) in &self.moves[..self.count as usize] {
-            p[k as usize] = x;
+    /// Writes the new positions of `particles` (slot order) into `p`.
+    pub fn write(&self, particles: [u32; 2], p: &mut [Vec3]) {
+        for (&to, &k) in self.to[..self.count as usize].iter().zip(&particles) {
+            p[k as usize] = to;
         }
     }
 }
 
-/// Read access to particle positions: a slice, or the disjoint view a
-/// parallel colour sweep hands each of its threads.
-pub trait Particles {
-    /// Position of particle `i`.
-    fn at(&self, i: usize) -> Vec3;
+/// What a kernel is given of the particles one constraint moves, by value
+/// and in the slot order of [`ConstraintBatch::particles`] (a single-particle
+/// constraint reads slot 0): their positions and inverse masses, nothing
+/// else. A kernel cannot read a particle it does not move, which is what
+/// lets the colour sweeps (`solver::sweep`) run constraints of one colour on
+/// several threads with only their own particles in hand.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gathered {
+    /// Positions.
+    pub at: [Vec3; 2],
+    /// Inverse masses. Units: 1/kg.
+    pub w: [f32; 2],
 }
 
-impl Particles for [Vec3] {
+impl Gathered {
+    /// The particles `particles` of positions `p` and inverse masses `w`.
     #[inline(always)]
-    fn at(&self, i: usize) -> Vec3 {
-        self[i]
+    pub fn from_slices(particles: [u32; 2], p: &[Vec3], w: &[f32]) -> Self {
+        let [a, b] = particles.map(|k| k as usize);
+        Self {
+            at: [p[a], p[b]],
+            w: [w[a], w[b]],
+        }
     }
 }
 
 /// A batch of constraints of one type, projected one at a time
-/// (Gauss–Seidel, [`ConstraintBatch::solve`]) or a colour group at a time
-/// (compute every [`Correction`], then [`ConstraintBatch::commit`] them).
+/// (Gauss–Seidel, [`ConstraintBatch::solve`]) or a colour group at a time.
 pub trait ConstraintBatch {
     /// Number of constraints.
     fn count(&self) -> usize;
@@ -201,39 +212,23 @@ pub trait ConstraintBatch {
     /// for a single particle (targets are read-only).
     fn particles(&self, i: usize) -> [u32; 2];
 
-    /// Projection of constraint `i` with accumulated multiplier `lambda` at
-    /// positions `p`, moving `particles` (what [`ConstraintBatch::particles`]
-    /// gives, or a colour plan's copy of it), not yet written (`None`:
-    /// nothing to do). The kernel every method shares; a correction moves
-    /// only `particles`.
-    fn correction_with<P: Particles + ?Sized>(
+    /// Projection of constraint `i` with accumulated multiplier `lambda`,
+    /// given its particles ([`Gathered`]), not yet written (`None`: nothing
+    /// to do). The kernel every method shares.
+    fn correction_of(
         &self,
         i: usize,
-        particles: [u32; 2],
         lambda: f32,
-        p: &P,
-        w: &[f32],
+        at: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction>;
 
-    /// [`ConstraintBatch::correction_with`] on the batch's own particles.
-    #[inline(always)]
-    fn correction_at<P: Particles + ?Sized>(
-        &self,
-        i: usize,
-        lambda: f32,
-        p: &P,
-        w: &[f32],
-        inv_dt2: f32,
-    ) -> Option<Correction> {
-        self.correction_with(i, self.particles(i), lambda, p, w, inv_dt2)
-    }
-
-    /// Projection of constraint `i` at `p` with its own multiplier, not yet
-    /// written (`None`: nothing to do).
+    /// Projection of constraint `i` at positions `p` with its own
+    /// multiplier, not yet written (`None`: nothing to do).
     #[inline]
     fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
-        self.correction_at(i, self.lambdas()[i], p, w, inv_dt2)
+        let at = Gathered::from_slices(self.particles(i), p, w);
+        self.correction_of(i, self.lambdas()[i], at, inv_dt2)
     }
 
     /// The accumulated multipliers.
@@ -245,7 +240,7 @@ pub trait ConstraintBatch {
     /// Writes a correction of constraint `i`.
     fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
         self.lambdas_mut()[i] += c.dlambda;
-        c.write(p);
+        c.write(self.particles(i), p);
     }
 
     /// One Gauss–Seidel pass over the batch.

@@ -8,7 +8,7 @@
 //! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
 //! ```
 
-use super::{ConstraintBatch, Correction, Particles, delta_lambda};
+use super::{ConstraintBatch, Correction, Gathered, delta_lambda};
 use glam::Vec3;
 
 /// A batch of single-particle constraints towards goal points.
@@ -76,29 +76,28 @@ impl ConstraintBatch for PointBatch {
     }
 
     #[inline(always)]
-    fn correction_with<P: Particles + ?Sized>(
+    fn correction_of(
         &self,
         i: usize,
-        [particle, _]: [u32; 2],
         lambda: f32,
-        p: &P,
-        w: &[f32],
+        Gathered {
+            at: [x, _],
+            w: [w, _],
+        }: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction> {
         let alpha = self.compliance[i] * inv_dt2;
         if !alpha.is_finite() {
             return None;
         }
-        let k = particle as usize;
-        let x = p.at(k);
         let d = x - self.goal[i];
         let len = d.length();
         if len < 1e-9 {
             return None;
         }
-        let dl = delta_lambda(len - self.rest[i], lambda, w[k] + self.target_w[i], alpha);
+        let dl = delta_lambda(len - self.rest[i], lambda, w + self.target_w[i], alpha);
         let mut to = x;
-        to += d * (w[k] * dl / len);
-        Some(Correction::one(dl, particle, to))
+        to += d * (w * dl / len);
+        Some(Correction::one(dl, to))
     }
 }

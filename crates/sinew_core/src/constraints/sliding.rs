@@ -13,7 +13,7 @@
 //! non-compliant position projection (bones do not give way), then the
 //! compliant gap equality acts as usual.
 
-use super::{ConstraintBatch, Correction, Particles, delta_lambda};
+use super::{ConstraintBatch, Correction, Gathered, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -126,24 +126,23 @@ impl ConstraintBatch for SlidingBatch {
     }
 
     #[inline(always)]
-    fn correction_with<P: Particles + ?Sized>(
+    fn correction_of(
         &self,
         i: usize,
-        [particle, _]: [u32; 2],
         lambda: f32,
-        p: &P,
-        w: &[f32],
+        Gathered {
+            at: [start, _],
+            w: [w, _],
+        }: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction> {
         let alpha = self.compliance[i] * inv_dt2;
         if !alpha.is_finite() {
             return None;
         }
-        let k = particle as usize;
-        let start = p.at(k);
         let mut x = start;
         let t = self.target[i];
-        if t != u32::MAX && w[k] > 0.0 && self.rigid.get(t as usize) == Some(&true) {
+        if t != u32::MAX && w > 0.0 && self.rigid.get(t as usize) == Some(&true) {
             let slot = i * self.targets + t as usize;
             let s = self.normal[i].dot(x - self.point[i]);
             if s < 0.0 && self.rest_outside[slot] {
@@ -151,16 +150,16 @@ impl ConstraintBatch for SlidingBatch {
             }
         }
         let Some((c, g)) = self.value_and_gradient(i, x) else {
-            return (x != start).then(|| Correction::one(0.0, particle, x));
+            return (x != start).then(|| Correction::one(0.0, x));
         };
-        let wk = w[k] + self.target_w[i];
+        let wk = w + self.target_w[i];
         let mut dl = delta_lambda(c, lambda, wk * g.length_squared(), alpha);
         if self.mode == SlidingMode::Contact {
             // Unilateral: total λ stays ≥ 0 (it may only push outwards).
             let total = (lambda + dl).max(0.0);
             dl = total - lambda;
         }
-        x += g * (w[k] * dl);
-        Some(Correction::one(dl, particle, x))
+        x += g * (w * dl);
+        Some(Correction::one(dl, x))
     }
 }

@@ -24,7 +24,7 @@
 //! colours plus a Jacobi tail. `sweep.rs` runs them.
 
 use super::jacobi::JacobiState;
-use super::sweep;
+use super::sweep::{self, PlannedConstraint, Segment, SweepPlan};
 use crate::constraints::{ConstraintBatch, ConstraintCounts, ConstraintKind, Correction};
 use crate::muscle::Muscle;
 
@@ -199,30 +199,6 @@ pub enum PlanKind {
     },
 }
 
-/// One constraint as a colour sweep runs it: its index in its batch and the
-/// particles it moves, copied when the plan was built. The sweep writes only
-/// these particles, so what makes a colour race-free (no particle in two of
-/// its units) is checked on data the plan owns: a muscle edited after the
-/// plan was built can make the plan stale ([`ColorPlan::fits`]), never unsound.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct PlannedConstraint {
-    /// Index in its type's batch.
-    pub index: u32,
-    /// What [`ConstraintBatch::particles`] gave when the plan was built.
-    pub particles: [u32; 2],
-}
-
-/// A run of a chunk's constraints of one type: `ops[start..end]`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Segment {
-    /// Constraint type of the run.
-    pub kind: ConstraintKind,
-    /// First op.
-    pub start: u32,
-    /// One past the last op.
-    pub end: u32,
-}
-
 /// The particles constraint `c` of `m` moves, as its batch gives them
 /// (`[p, p]` for one particle; Volume has none).
 fn batch_particles(m: &Muscle, c: ConstraintRef) -> [u32; 2] {
@@ -260,13 +236,10 @@ pub const CHUNK_CONSTRAINTS: usize = 1024;
 pub struct ColorPlan {
     /// Constraints in solve order: colour by colour, unit by unit.
     refs: Vec<ConstraintRef>,
-    /// What the sweeps run: each chunk's constraints as runs of one type
-    /// (`segments`), with the particles they move copied from the muscle.
-    ops: Vec<PlannedConstraint>,
-    /// Runs of `ops` of one type; chunk `g` (a global chunk index) owns
-    /// `segments[chunk_segments[g]..chunk_segments[g + 1]]`.
-    segments: Vec<Segment>,
-    chunk_segments: Vec<u32>,
+    /// What the sweeps run: each chunk's constraints as runs of one type,
+    /// with the particles they move copied from the muscle, checked for
+    /// disjointness by the sweep module itself.
+    sweep: SweepPlan,
     /// The particle indices of every constraint when the plan was built,
     /// batch by batch ([`particle_indices`]): what makes a colour's units
     /// disjoint, compared whole (a memory compare) by [`ColorPlan::fits`].
@@ -279,10 +252,8 @@ pub struct ColorPlan {
     units: Vec<u32>,
     /// `units` of colour `c`: `colors[c]..colors[c + 1]`.
     colors: Vec<u32>,
-    /// Chunk boundaries as unit indices; colour `c`'s chunks are
-    /// `chunk_colors[c]..chunk_colors[c + 1]`.
+    /// Chunk boundaries as unit indices.
     chunks: Vec<u32>,
-    chunk_colors: Vec<u32>,
     /// Hybrid: the constraints solved Jacobi after the colours.
     tail: Option<JacobiState>,
     kind: PlanKind,
@@ -403,11 +374,10 @@ impl ColorPlan {
         };
         // owner[p]: the last unit (global index + 1) that moved p, and its colour.
         let mut owner: Vec<(u32, u32)> = vec![(0, u32::MAX); particles];
+        let mut chunk_colors = vec![0u32];
         let mut plan = Self {
             refs: Vec::new(),
-            ops: Vec::new(),
-            segments: Vec::new(),
-            chunk_segments: vec![0],
+            sweep: SweepPlan::default(),
             tied: particle_indices(m).concat(),
             off: compliances(m)
                 .iter()
@@ -416,7 +386,6 @@ impl ColorPlan {
             units: vec![0],
             colors: vec![0],
             chunks: vec![0],
-            chunk_colors: vec![0],
             tail: None,
             kind,
             particles,
@@ -449,7 +418,7 @@ impl ColorPlan {
                 plan.chunks.push(plan.units.len() as u32 - 1);
             }
             plan.colors.push(plan.units.len() as u32 - 1);
-            plan.chunk_colors.push(plan.chunks.len() as u32 - 1);
+            chunk_colors.push(plan.chunks.len() as u32 - 1);
         }
         for &c in &tail {
             mark(c);
@@ -467,7 +436,7 @@ impl ColorPlan {
                 .partition(|c| super::jacobi::single_particle(c.kind));
             plan.tail = Some(JacobiState::from_parts(m, gauss_seidel, jacobi));
         }
-        plan.pack_segments(m, order);
+        plan.sweep = plan.pack_segments(m, order, chunk_colors);
         plan
     }
 
@@ -479,7 +448,12 @@ impl ColorPlan {
     /// solving unit after unit. Switched-off constraints (weight 0: T7's
     /// Soft and Hard, a third of its constraints) are left out of the runs;
     /// they would return no correction.
-    fn pack_segments(&mut self, m: &Muscle, order: &[ConstraintKind]) {
+    fn pack_segments(
+        &self,
+        m: &Muscle,
+        order: &[ConstraintKind],
+        chunk_colors: Vec<u32>,
+    ) -> SweepPlan {
         let rank = |k: ConstraintKind| order.iter().position(|&o| o == k).unwrap_or(order.len());
         for u in 0..self.units.len() - 1 {
             let unit = self.unit(u);
@@ -488,31 +462,40 @@ impl ColorPlan {
                 "unit {u} is not in the projection order's type order"
             );
         }
+        let (mut ops, mut segments, mut chunk_segments) = (Vec::new(), Vec::new(), vec![0]);
         let mut chunk = Vec::new();
         for g in 0..self.chunks.len() - 1 {
             let (u0, u1) = (self.chunks[g] as usize, self.chunks[g + 1] as usize);
             chunk.clear();
             chunk.extend_from_slice(&self.refs[self.units[u0] as usize..self.units[u1] as usize]);
             chunk.sort_by_key(|c| rank(c.kind));
-            let first = self.segments.len();
+            let first = segments.len();
             // A switched-off constraint does nothing: the sweeps skip it.
             for c in chunk.iter().filter(|&&c| !is_off(m, c)) {
-                let start = self.ops.len() as u32;
-                self.ops.push(PlannedConstraint {
+                let start = ops.len() as u32;
+                ops.push(PlannedConstraint {
                     index: c.index,
                     particles: batch_particles(m, *c),
                 });
-                match self.segments[first..].last_mut() {
-                    Some(s) if s.kind == c.kind => s.end += 1,
-                    _ => self.segments.push(Segment {
+                match segments[first..].last_mut() {
+                    Some(Segment { kind, end, .. }) if *kind == c.kind => *end += 1,
+                    _ => segments.push(Segment {
                         kind: c.kind,
                         start,
                         end: start + 1,
                     }),
                 }
             }
-            self.chunk_segments.push(self.segments.len() as u32);
+            chunk_segments.push(segments.len() as u32);
         }
+        SweepPlan::new(
+            ops,
+            segments,
+            chunk_segments,
+            chunk_colors,
+            self.particles,
+            self.counts,
+        )
     }
 
     /// How the plan was built.
@@ -578,20 +561,12 @@ impl ColorPlan {
 
     /// Number of chunks of colour `c`.
     pub fn chunk_count(&self, c: usize) -> usize {
-        (self.chunk_colors[c + 1] - self.chunk_colors[c]) as usize
+        self.sweep.chunk_count(c)
     }
 
-    /// The runs of one constraint type of chunk `k` of colour `c`, in
-    /// solve order.
-    pub(super) fn chunk_segments(&self, c: usize, k: usize) -> &[Segment] {
-        let g = self.chunk_colors[c] as usize + k;
-        &self.segments[self.chunk_segments[g] as usize..self.chunk_segments[g + 1] as usize]
-    }
-
-    /// The constraints of run `s`.
-    #[inline]
-    pub(super) fn segment_ops(&self, s: &Segment) -> &[PlannedConstraint] {
-        &self.ops[s.start as usize..s.end as usize]
+    /// What the colour sweeps run.
+    pub(super) fn sweep(&self) -> &SweepPlan {
+        &self.sweep
     }
 
     /// The constraints solved Jacobi after the colours (Hybrid), if any.
@@ -650,7 +625,7 @@ pub fn project_colored(
     check_plan: bool,
 ) {
     let mut plan = take_plan(m, order, kind, check_plan);
-    sweep::sweep_muscle(m, &plan, inv_h2, parallel);
+    sweep::sweep_muscle(m, plan.sweep(), inv_h2, parallel);
     project_tail(m, &mut plan, inv_h2, omega, parallel);
     m.colors = Some(plan);
 }
@@ -738,7 +713,7 @@ mod tests {
             let order = ConstraintKind::CANONICAL_ORDER;
             let all = ColorPlan::clustered(&m, &order);
             assert!(all.fits(&m));
-            assert_eq!(all.ops.len(), all.refs.len());
+            assert_eq!(all.sweep.op_count(), all.refs.len());
             // Weight 0 on a Soft and a Sliding constraint: the old plan no
             // longer fits, the new one leaves both out of its runs.
             m.constraints.soft.compliance[0] = f32::INFINITY;
@@ -747,10 +722,15 @@ mod tests {
             let fewer = ColorPlan::clustered(&m, &order);
             assert!(fewer.fits(&m));
             assert_eq!(fewer.refs, all.refs, "the colouring itself is unchanged");
-            assert_eq!(fewer.ops.len(), all.ops.len() - 2);
+            assert_eq!(fewer.sweep.op_count(), all.sweep.op_count() - 2);
             let planned = |kind, index| {
-                fewer.segments.iter().any(|s| {
-                    s.kind == kind && fewer.segment_ops(s).iter().any(|op| op.index == index)
+                fewer.sweep.segments().iter().any(|s| {
+                    s.kind == kind
+                        && fewer
+                            .sweep
+                            .segment_ops(s)
+                            .iter()
+                            .any(|op| op.index == index)
                 })
             };
             assert!(!planned(ConstraintKind::Soft, 0));

@@ -103,7 +103,7 @@ pub fn single_particle(kind: ConstraintKind) -> bool {
 
 /// The position a correction gives particle `p`, from `slot` of it.
 fn moved_to(c: &Correction, slot: u8) -> Vec3 {
-    c.moves[slot as usize].1
+    c.to[slot as usize]
 }
 
 /// One Jacobi iteration of `m` (see the module docs). `parallel` computes the

@@ -863,7 +863,11 @@ impl Solver {
                             .collect();
                         threads.install(|| {
                             use rayon::prelude::*;
-                            sweep::sweep_global(muscles, &plans, inv_h2);
+                            let sweeps: Vec<_> = plans
+                                .iter()
+                                .map(|p| p.as_ref().map(coloring::ColorPlan::sweep))
+                                .collect();
+                            sweep::sweep_global(muscles, &sweeps, inv_h2);
                             muscles
                                 .par_iter_mut()
                                 .zip(&mut plans)

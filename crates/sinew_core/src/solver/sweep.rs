@@ -1,32 +1,202 @@
 //! Parallel colour sweeps that write positions in place.
 //!
-//! A [`ColorPlan`] colour is a set of units that share no particle, and
-//! every constraint is in one unit (its constructor checks both). Threads
-//! can therefore run the units of one colour at the same time, each reading
-//! and writing only its own particles and its own constraints' multipliers:
-//! there is no race, no scratch buffer and no serial commit, and the result
-//! is the same for any thread count.
+//! A [`SweepPlan`] is what a sweep runs: colours of chunks, each chunk runs
+//! of one constraint type, each constraint with the particles it moves.
+//! Threads run the chunks of one colour at the same time, each reading and
+//! writing only its own constraints' particles and multipliers: no scratch
+//! buffer, no serial commit, the same result for any thread count.
 //!
 //! Rust cannot see that disjointness through `&mut [Vec3]`, so this module —
 //! the only one in the crate allowed `unsafe` — hands each thread a
-//! [`SharedSlice`]: a raw view of the muscle's positions and multipliers.
-//! The views never leave this module and every access is bounds-checked.
-//! Positions are written only at the particles the plan holds for each
-//! constraint (its own copy, the one its constructor checked), and each
-//! multiplier belongs to one planned constraint, so no muscle edit can make
-//! two threads write one place: a plan that no longer fits its muscle
-//! ([`ColorPlan::fits`], checked in the first iteration of every substep)
-//! solves the old topology until it is rebuilt, and the sweeps re-check the
-//! counts the views' lengths come from.
-#![allow(unsafe_code)]
+//! [`SharedSlice`], a raw view of the muscle's positions and multipliers.
+//! Soundness rests on this module alone:
+//!
+//! - [`SweepPlan::new`] checks, on the plan's own copy of every constraint's
+//!   particles, that no particle and no multiplier is touched by two chunks
+//!   of one colour, and that every index is in range for the counts it
+//!   records; the plan's fields are private to this module, so nothing can
+//!   change them afterwards.
+//! - A sweep checks that the muscle still has those counts (positions and
+//!   multipliers are the views' lengths), and every access is bounds-checked.
+//! - Positions are written only at the plan's particles, and a kernel is
+//!   given its particles' positions by value ([`Gathered`]): it cannot read
+//!   a particle another thread writes.
+//!
+//! A plan that no longer fits its muscle (a host retied a constraint) solves
+//! the old topology until it is rebuilt — stale, never racy.
+#![expect(
+    unsafe_code,
+    reason = "threads write disjoint entries of one slice; the disjointness is checked here"
+)]
 
-use super::coloring::{ColorPlan, PlannedConstraint};
-use crate::constraints::{ConstraintBatch, ConstraintKind, MuscleLambdas, Particles};
+use crate::constraints::{
+    ConstraintBatch, ConstraintCounts, ConstraintKind, Gathered, MuscleLambdas,
+};
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
 use std::marker::PhantomData;
 
-/// A slice several threads write at disjoint indices.
+/// One planned constraint: its index in its batch and the particles it
+/// moves (what [`ConstraintBatch::particles`] gave when the plan was built).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct PlannedConstraint {
+    /// Index in its type's batch.
+    pub index: u32,
+    /// The particles it moves, `[p, p]` for one.
+    pub particles: [u32; 2],
+}
+
+/// A run of a chunk's constraints of one type: `ops[start..end]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Segment {
+    /// Constraint type of the run.
+    pub kind: ConstraintKind,
+    /// First op.
+    pub start: u32,
+    /// One past the last op.
+    pub end: u32,
+}
+
+/// What a colour sweep runs, checked for disjointness when made (module
+/// docs). Chunk `g` (a global chunk index) owns
+/// `segments[chunk_segments[g]..chunk_segments[g + 1]]`; colour `c` owns
+/// chunks `chunk_colors[c]..chunk_colors[c + 1]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SweepPlan {
+    ops: Vec<PlannedConstraint>,
+    segments: Vec<Segment>,
+    chunk_segments: Vec<u32>,
+    chunk_colors: Vec<u32>,
+    particles: usize,
+    counts: ConstraintCounts,
+}
+
+impl SweepPlan {
+    /// Checks and keeps a packed plan for a muscle of `particles` particles
+    /// and `counts` constraints. Panics when two chunks of a colour share a
+    /// particle or a multiplier, or an index is out of range: that is a bug
+    /// in the plan's builder, and a sweep must never run it.
+    pub(super) fn new(
+        ops: Vec<PlannedConstraint>,
+        segments: Vec<Segment>,
+        chunk_segments: Vec<u32>,
+        chunk_colors: Vec<u32>,
+        particles: usize,
+        counts: ConstraintCounts,
+    ) -> Self {
+        let plan = Self {
+            ops,
+            segments,
+            chunk_segments,
+            chunk_colors,
+            particles,
+            counts,
+        };
+        plan.check();
+        plan
+    }
+
+    fn check(&self) {
+        let chunks = self.chunk_segments.len().saturating_sub(1);
+        assert!(
+            self.chunk_colors.first() == Some(&0)
+                && self.chunk_colors.windows(2).all(|w| w[0] <= w[1])
+                && self
+                    .chunk_colors
+                    .last()
+                    .is_some_and(|&c| c as usize <= chunks),
+            "chunk boundaries of the colours out of order"
+        );
+        assert!(
+            self.chunk_segments.first() == Some(&0)
+                && self.chunk_segments.windows(2).all(|w| w[0] <= w[1])
+                && self
+                    .chunk_segments
+                    .last()
+                    .is_some_and(|&s| s as usize == self.segments.len()),
+            "segment boundaries of the chunks out of order"
+        );
+        for s in &self.segments {
+            assert!(
+                s.start <= s.end && s.end as usize <= self.ops.len(),
+                "segment out of range"
+            );
+        }
+        // owner[p] / owner of a multiplier: (colour + 1, chunk) of the last
+        // chunk that touched it.
+        let mut owner = vec![(0u32, 0u32); self.particles];
+        let mut lambda_owner: Vec<Vec<(u32, u32)>> = ConstraintKind::CANONICAL_ORDER
+            .iter()
+            .map(|&k| vec![(0, 0); self.counts.get(k)])
+            .collect();
+        for c in 0..self.color_count() {
+            for k in 0..self.chunk_count(c) {
+                let mark = (c as u32 + 1, k as u32);
+                for s in self.chunk_segments(c, k) {
+                    assert!(s.kind != ConstraintKind::Volume, "Volume is solved apart");
+                    for op in self.segment_ops(s) {
+                        let l = &mut lambda_owner[s.kind as usize][op.index as usize];
+                        assert!(
+                            l.0 != mark.0 || l.1 == mark.1,
+                            "colour {c}: a multiplier of two chunks"
+                        );
+                        *l = mark;
+                        for p in op.particles {
+                            let o = &mut owner[p as usize];
+                            assert!(
+                                o.0 != mark.0 || o.1 == mark.1,
+                                "colour {c}: particle {p} in two chunks"
+                            );
+                            *o = mark;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Number of colours.
+    pub fn color_count(&self) -> usize {
+        self.chunk_colors.len() - 1
+    }
+
+    /// Chunks of colour `c`.
+    pub fn chunk_count(&self, c: usize) -> usize {
+        (self.chunk_colors[c + 1] - self.chunk_colors[c]) as usize
+    }
+
+    /// Constraints the sweeps run (switched-off ones are left out).
+    #[cfg(test)]
+    pub fn op_count(&self) -> usize {
+        self.ops.len()
+    }
+
+    /// Every run of one constraint type, in solve order.
+    #[cfg(test)]
+    pub(super) fn segments(&self) -> &[Segment] {
+        &self.segments
+    }
+
+    /// The runs of chunk `k` of colour `c`, in solve order.
+    pub(super) fn chunk_segments(&self, c: usize, k: usize) -> &[Segment] {
+        let g = self.chunk_colors[c] as usize + k;
+        &self.segments[self.chunk_segments[g] as usize..self.chunk_segments[g + 1] as usize]
+    }
+
+    /// The constraints of run `s`.
+    #[inline]
+    pub(super) fn segment_ops(&self, s: &Segment) -> &[PlannedConstraint] {
+        &self.ops[s.start as usize..s.end as usize]
+    }
+
+    /// Whether `m` has the particle and constraint counts the plan was
+    /// checked for (the lengths the sweep's views come from).
+    pub(super) fn sized_for(&self, m: &Muscle) -> bool {
+        self.particles == m.x.len() && self.counts == m.counts()
+    }
+}
+
+/// A slice several threads of one sweep write at disjoint indices.
 struct SharedSlice<'a, T> {
     ptr: *mut T,
     len: usize,
@@ -50,29 +220,24 @@ impl<'a, T: Copy> SharedSlice<'a, T> {
 
     /// Reads index `i`.
     ///
-    /// Callers guarantee no other thread writes `i` during the sweep.
+    /// # Safety
+    /// No other thread writes `i` during the sweep.
     #[inline(always)]
-    fn read(&self, i: usize) -> T {
+    unsafe fn read(&self, i: usize) -> T {
         assert!(i < self.len);
-        // SAFETY: in bounds (checked); no concurrent writer (module invariant).
+        // SAFETY: in bounds (checked); no concurrent writer (the caller's contract).
         unsafe { self.ptr.add(i).read() }
     }
 
     /// Writes index `i`.
     ///
-    /// Callers guarantee no other thread reads or writes `i` during the sweep.
+    /// # Safety
+    /// No other thread reads or writes `i` during the sweep.
     #[inline(always)]
-    fn write(&self, i: usize, value: T) {
+    unsafe fn write(&self, i: usize, value: T) {
         assert!(i < self.len);
-        // SAFETY: in bounds (checked); exclusive to this thread (module invariant).
+        // SAFETY: in bounds (checked); exclusive to this thread (the caller's contract).
         unsafe { self.ptr.add(i).write(value) }
-    }
-}
-
-impl Particles for SharedSlice<'_, Vec3> {
-    #[inline(always)]
-    fn at(&self, i: usize) -> Vec3 {
-        self.read(i)
     }
 }
 
@@ -83,20 +248,31 @@ struct MuscleSweep<'a> {
     lambdas: [SharedSlice<'a, f32>; 8],
     w: &'a [f32],
     k: &'a MuscleConstraints,
-    plan: &'a ColorPlan,
+    plan: &'a SweepPlan,
     inv_h2: f32,
 }
 
 impl<'a> MuscleSweep<'a> {
-    /// Views of `p` and `lambdas` (taken out of `k`) for `plan`, which must fit.
+    /// Views of `p` and `lambdas` (taken out of `k`) for `plan`.
     fn new(
         p: &'a mut [Vec3],
         w: &'a [f32],
         k: &'a MuscleConstraints,
         lambdas: &'a mut MuscleLambdas,
-        plan: &'a ColorPlan,
+        plan: &'a SweepPlan,
         inv_h2: f32,
     ) -> Self {
+        assert!(
+            p.len() == plan.particles && w.len() == plan.particles,
+            "colour plan built for another particle count"
+        );
+        for (kind, l) in ConstraintKind::CANONICAL_ORDER.iter().zip(lambdas.iter()) {
+            assert_eq!(
+                l.len(),
+                plan.counts.get(*kind),
+                "colour plan built for other counts"
+            );
+        }
         Self {
             p: SharedSlice::new(p),
             lambdas: lambdas
@@ -130,23 +306,31 @@ impl<'a> MuscleSweep<'a> {
     }
 
     /// Projects a run of `batch`'s constraints (of type `kind`) one after the
-    /// other, writing each correction at once. Positions are written only at
-    /// the particles the plan gives (the kernel moves exactly those, in
-    /// order), so the plan's disjointness is what the writes rely on.
+    /// other, writing each correction at once, at the particles the plan
+    /// gives.
     #[inline(always)]
     fn run<B: ConstraintBatch>(&self, batch: &B, kind: ConstraintKind, ops: &[PlannedConstraint]) {
-        let (p, w, h) = (&self.p, self.w, self.inv_h2);
         let lambda = &self.lambdas[kind as usize];
         for op in ops {
             let i = op.index as usize;
-            let l = lambda.read(i);
-            if let Some(c) = batch.correction_with(i, op.particles, l, p, w, h) {
-                lambda.write(i, l + c.dlambda);
-                for (&(moved, to), &particle) in
-                    c.moves[..c.count as usize].iter().zip(&op.particles)
-                {
-                    debug_assert_eq!(moved, particle);
-                    p.write(particle as usize, to);
+            let [a, b] = op.particles.map(|k| k as usize);
+            // SAFETY: the chunk being run is the only one of its colour that
+            // touches these particles and this multiplier (`SweepPlan::check`),
+            // and the colours run one after the other.
+            let (l, at) = unsafe {
+                let at = Gathered {
+                    at: [self.p.read(a), self.p.read(b)],
+                    w: [self.w[a], self.w[b]],
+                };
+                (lambda.read(i), at)
+            };
+            if let Some(c) = batch.correction_of(i, l, at, self.inv_h2) {
+                // SAFETY: as above.
+                unsafe {
+                    lambda.write(i, l + c.dlambda);
+                    for (&to, &k) in c.to[..c.count as usize].iter().zip(&op.particles) {
+                        self.p.write(k as usize, to);
+                    }
                 }
             }
         }
@@ -167,7 +351,7 @@ impl<'a> MuscleSweep<'a> {
 }
 
 /// Runs every colour of `plan` on `m` (the Jacobi tail apart).
-pub(super) fn sweep_muscle(m: &mut Muscle, plan: &ColorPlan, inv_h2: f32, parallel: bool) {
+pub(super) fn sweep_muscle(m: &mut Muscle, plan: &SweepPlan, inv_h2: f32, parallel: bool) {
     assert!(plan.sized_for(m), "colour plan built for another topology");
     let mut lambdas = m.constraints.take_lambdas();
     {
@@ -184,13 +368,13 @@ pub(super) fn sweep_muscle(m: &mut Muscle, plan: &ColorPlan, inv_h2: f32, parall
 /// `i`'s plan, `None` for a muscle that sits this iteration out. Each sweep
 /// splits into (muscle, chunk) tasks on the current rayon pool, so a large
 /// muscle spreads over threads and small ones share them.
-pub(super) fn sweep_global(muscles: &mut [Muscle], plans: &[Option<ColorPlan>], inv_h2: f32) {
+pub(super) fn sweep_global(muscles: &mut [Muscle], plans: &[Option<&SweepPlan>], inv_h2: f32) {
     use rayon::prelude::*;
     let mut lambdas: Vec<Option<MuscleLambdas>> = muscles
         .iter_mut()
         .zip(plans)
         .map(|(m, plan)| {
-            plan.as_ref().map(|plan| {
+            plan.map(|plan| {
                 assert!(plan.sized_for(m), "colour plan built for another topology");
                 m.constraints.take_lambdas()
             })
@@ -216,7 +400,7 @@ pub(super) fn sweep_global(muscles: &mut [Muscle], plans: &[Option<ColorPlan>], 
         let colors = plans
             .iter()
             .flatten()
-            .map(ColorPlan::color_count)
+            .map(|p| p.color_count())
             .max()
             .unwrap_or(0);
         let mut tasks: Vec<(usize, usize)> = Vec::new();
@@ -238,5 +422,55 @@ pub(super) fn sweep_global(muscles: &mut [Muscle], plans: &[Option<ColorPlan>], 
         if let Some(l) = l {
             m.constraints.restore_lambdas(l);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn counts(fiber: usize) -> ConstraintCounts {
+        let mut c = ConstraintCounts::default();
+        c.0[ConstraintKind::Fiber as usize] = fiber;
+        c
+    }
+
+    fn fiber(index: u32, particles: [u32; 2]) -> PlannedConstraint {
+        PlannedConstraint { index, particles }
+    }
+
+    /// Two chunks of one colour, one op each.
+    fn plan(a: [u32; 2], b: [u32; 2]) -> SweepPlan {
+        let segment = |start| Segment {
+            kind: ConstraintKind::Fiber,
+            start,
+            end: start + 1,
+        };
+        SweepPlan::new(
+            vec![fiber(0, a), fiber(1, b)],
+            vec![segment(0), segment(1)],
+            vec![0, 1, 2],
+            vec![0, 2],
+            4,
+            counts(2),
+        )
+    }
+
+    #[test]
+    fn chunks_of_a_colour_on_disjoint_particles_are_accepted() {
+        let p = plan([0, 1], [2, 3]);
+        assert_eq!((p.color_count(), p.chunk_count(0), p.op_count()), (1, 2, 2));
+    }
+
+    #[test]
+    #[should_panic(expected = "particle 1 in two chunks")]
+    fn chunks_of_a_colour_sharing_a_particle_are_refused() {
+        plan([0, 1], [1, 2]);
+    }
+
+    #[test]
+    #[should_panic]
+    fn a_particle_out_of_range_is_refused() {
+        plan([0, 1], [2, 9]);
     }
 }
