@@ -165,10 +165,12 @@ impl ConstraintBatch for DistanceBatch {
         self.a.len()
     }
 
+    #[inline(always)]
     fn lambdas_mut(&mut self) -> &mut [f32] {
         &mut self.lambda
     }
 
+    #[inline(always)]
     fn lambdas(&self) -> &[f32] {
         &self.lambda
     }

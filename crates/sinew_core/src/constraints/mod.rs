@@ -169,6 +169,7 @@ impl Correction {
     }
 
     /// Writes the new positions of `particles` (slot order) into `p`.
+    #[inline(always)]
     pub fn write(&self, particles: [u32; 2], p: &mut [Vec3]) {
         for (&to, &k) in self.to[..self.count as usize].iter().zip(&particles) {
             p[k as usize] = to;
@@ -225,7 +226,7 @@ pub trait ConstraintBatch {
 
     /// Projection of constraint `i` at positions `p` with its own
     /// multiplier, not yet written (`None`: nothing to do).
-    #[inline]
+    #[inline(always)]
     fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
         let at = Gathered::from_slices(self.particles(i), p, w);
         self.correction_of(i, self.lambdas()[i], at, inv_dt2)
@@ -238,16 +239,21 @@ pub trait ConstraintBatch {
     fn lambdas_mut(&mut self) -> &mut [f32];
 
     /// Writes a correction of constraint `i`.
+    #[inline(always)]
     fn commit(&mut self, i: usize, c: &Correction, p: &mut [Vec3]) {
         self.lambdas_mut()[i] += c.dlambda;
         c.write(self.particles(i), p);
     }
 
-    /// One Gauss–Seidel pass over the batch.
+    /// One Gauss–Seidel pass over the batch (the kernel inlined into the
+    /// loop: this is the Sequential method's whole projection).
     fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         for i in 0..self.count() {
-            if let Some(c) = self.correction(i, p, w, inv_dt2) {
-                self.commit(i, &c, p);
+            let particles = self.particles(i);
+            let at = Gathered::from_slices(particles, p, w);
+            if let Some(c) = self.correction_of(i, self.lambdas()[i], at, inv_dt2) {
+                self.lambdas_mut()[i] += c.dlambda;
+                c.write(particles, p);
             }
         }
     }

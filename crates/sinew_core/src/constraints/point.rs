@@ -62,10 +62,12 @@ impl ConstraintBatch for PointBatch {
         self.particle.len()
     }
 
+    #[inline(always)]
     fn lambdas_mut(&mut self) -> &mut [f32] {
         &mut self.lambda
     }
 
+    #[inline(always)]
     fn lambdas(&self) -> &[f32] {
         &self.lambda
     }
