@@ -3,7 +3,10 @@
 //! plain `sinew_core` driver steps the same scene in lockstep (same frames,
 //! same machine state), and both medians and the ECS overhead are reported.
 //!
-//! `cargo run --release --example headless -- assets/scenes/t5.ron 120 --compare`
+//! `--threads N` runs both drivers on N worker threads (default: the
+//! scene's).
+//!
+//! `cargo run --release --example headless -- assets/scenes/t5.ron 120 --compare --threads 2`
 
 use bevy::prelude::*;
 use sinew::bevy::prelude::*;
@@ -31,7 +34,19 @@ fn print_blocks(title: &str, blocks: impl IntoIterator<Item = (&'static str, Dur
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let compare = args.iter().any(|a| a == "--compare");
-    let mut positional = args.iter().filter(|a| !a.starts_with("--"));
+    let threads = match args.iter().position(|a| a == "--threads") {
+        Some(i) => Some(
+            args.get(i + 1)
+                .ok_or("--threads needs a count")?
+                .parse::<u32>()?,
+        ),
+        None => None,
+    };
+    let mut positional = args
+        .iter()
+        .enumerate()
+        .filter(|&(i, a)| !a.starts_with("--") && (i == 0 || args[i - 1] != "--threads"))
+        .map(|(_, a)| a);
     let path = positional
         .next()
         .map_or("assets/scenes/p3.ron", |p| p.as_str());
@@ -39,7 +54,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if frames < 2 {
         return Err("run at least 2 frames (the first is left out of the medians)".into());
     }
-    let scene = SinewScene::load(Path::new(path))?;
+    let mut scene = SinewScene::load(Path::new(path))?;
+    if let Some(threads) = threads {
+        scene.scene.settings.threads = threads;
+        scene.parts.settings.threads = threads;
+    }
     let mut plain = if compare {
         Some(scene.scene.instantiate(Path::new(path).parent().unwrap())?)
     } else {

@@ -5,10 +5,11 @@ use bevy::prelude::*;
 use sinew_core::animation::{Curve, TransformTrack};
 use sinew_core::closest::TargetSurface;
 use sinew_core::constraints::FiberMode as CoreFiberMode;
+use sinew_core::glam::Affine3A;
 use sinew_core::muscle::{Compliances, Muscle as CoreMuscle, MuscleParams};
 use sinew_core::sensor::ActivationRig;
 use sinew_core::skeleton::SkeletonRig;
-use sinew_core::{RigidMomentum, glam::Affine3A};
+use sinew_core::solver::MuscleWorkspace;
 
 /// A bone: a kinematic body muscles attach to and slide on. Its pose is its
 /// [`GlobalTransform`], read after transform propagation in the same frame.
@@ -264,17 +265,16 @@ impl Muscle {
     }
 }
 
-/// A muscle's built state: particles, internal structure, constraint batches
-/// (with their colour groups once a coloured method has run). The kernels
-/// are `sinew_core`'s.
+/// A muscle's built state: particles, internal structure, constraint
+/// batches, maps — the plain model the kernels (`sinew_core`'s) work on.
+/// What the solver derives from it lives next to it in [`SolverWorkspace`].
 #[derive(Component, Clone, Debug)]
+#[require(SolverWorkspace)]
 pub struct MuscleState {
     /// The core muscle.
     pub muscle: CoreMuscle,
     /// Whether Sliding / Soft / Hard are linked to the current targets.
     pub(crate) linked: bool,
-    /// Momentum a free muscle restores at the end of the substep.
-    pub(crate) momentum: Option<RigidMomentum>,
     /// The last parameters found invalid (reported once).
     pub(crate) rejected: Option<Muscle>,
     /// Pose of each attachment bone at the current substep (kept when a
@@ -288,7 +288,6 @@ impl MuscleState {
         Self {
             muscle,
             linked: false,
-            momentum: None,
             rejected: None,
             bone_poses: Vec::new(),
         }
@@ -306,9 +305,17 @@ impl MuscleState {
     }
 }
 
+/// What the solver derives from a muscle's [`MuscleState`] and keeps
+/// between steps: its colour plan or Jacobi incidence, closest-data caches,
+/// the index of each of its targets in the step's target table. Maintained
+/// by the plug-in (inserted with the state); read it for reports and debug
+/// views ([`MuscleWorkspace::plan`]).
+#[derive(Component, Clone, Debug, Default)]
+pub struct SolverWorkspace(pub MuscleWorkspace);
+
 /// What a muscle slides on, in order: entities with a [`BoneTarget`] or other
-/// muscles (their [`MuscleSnapshot`]). Edit it and call
-/// [`MuscleState::relink`]; entities that disappear are dropped.
+/// muscles (their [`MuscleSnapshot`]). An edit relinks the muscle on the
+/// next frame; entities that disappear are dropped.
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default)]
 pub struct MuscleTargets(pub Vec<Entity>);

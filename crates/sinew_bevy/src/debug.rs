@@ -5,7 +5,7 @@
 //! Branch constraints), attachments and their goals, the Sliding / Soft /
 //! Hard links to the targets, and the colour groups of the coloured method.
 
-use crate::components::MuscleState;
+use crate::components::{MuscleState, SolverWorkspace};
 use bevy::prelude::*;
 use sinew_core::constraints::ConstraintKind;
 use sinew_core::solver::coloring::{ColorPlan, PlanKind, particles_of};
@@ -63,12 +63,12 @@ fn hue(i: usize) -> Color {
 
 fn draw(
     view: Res<SinewDebugView>,
-    muscles: Query<(Entity, &MuscleState)>,
+    muscles: Query<(Entity, &MuscleState, &SolverWorkspace)>,
     mut gizmos: Gizmos,
     mut plans: Local<HashMap<Entity, ColorPlan>>,
 ) {
     let v = *view;
-    for (entity, state) in &muscles {
+    for (entity, state, workspace) in &muscles {
         let m = &state.muscle;
         let k = &m.constraints;
         let p = &m.x;
@@ -117,7 +117,7 @@ fn draw(
         }
         if v.colors {
             // The plan the solver runs on, else the thesis' colouring.
-            let plan = match &m.colors {
+            let plan = match workspace.0.plan() {
                 Some(plan) => plan,
                 None => plans.entry(entity).or_insert_with(|| {
                     ColorPlan::build(m, &ConstraintKind::CANONICAL_ORDER, PlanKind::PerConstraint)

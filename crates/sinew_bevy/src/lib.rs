@@ -2,8 +2,9 @@
 //!
 //! The [Bevy](https://bevyengine.org) plug-in for the sinew muscle solver.
 //! Muscles, bones and sensors are entities; the frame loop of
-//! [`sinew_core::Solver::step`] runs as ordered systems over them, with the
-//! same kernels ([`sinew_core::solver::stage`]) and the same bits.
+//! [`sinew_core::Solver::step`] runs as ordered systems over them, calling
+//! the same phases ([`sinew_core::solver::passes`]) with the same
+//! parameters, so both drivers give the same bits.
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -24,21 +25,31 @@
 //!
 //! ```text
 //! PostUpdate
-//!   SinewSystems::AnimateBones      (before TransformSystems::Propagate) scene tracks, skeletons
+//!   SinewSystems::AnimateBones      (before TransformSystems::Propagate) validated settings,
+//!                                   scene tracks and skeletons at the step's end time
 //!   TransformSystems::Propagate
-//!   SinewSystems::ReadInputs        bone poses, activation (curves, sensors), parameters, links
-//!   SinewSystems::Substeps          runs SinewSubstepSchedule `substeps` times:
-//!       SinewSystems::Integrate         bones, their targets and attachment goals at the substep; predict
-//!       SinewSystems::Iterate           runs SinewIterationSchedule N times:
-//!           SinewIterationSystems::UpdateTargets   muscle snapshots
-//!           SinewIterationSystems::ClosestData     closest points on the targets
-//!           SinewIterationSystems::Project         constraint projection (per colour / Jacobi)
-//!       SinewSystems::ApplyPredictions  v = (p − x)/h, x = p
+//!   SinewSystems::ReadInputs        bone poses, activation (curves, sensors), parameters,
+//!                                   target table and links, the step's FrameParams, rest lengths
+//!   SinewSystems::Substeps          runs SinewSubstepSchedule once per substep:
+//!       SinewSystems::Integrate         bones and their targets at the substep, attachment
+//!                                       goals, prediction (passes::begin_substep_all)
+//!       SinewSystems::Iterate           runs SinewIterationSchedule once per iteration:
+//!           SinewIterationSystems::UpdateTargets   muscle snapshots (passes::publish_all)
+//!           SinewIterationSystems::Solve           closest data and projection, one task per
+//!                                                  muscle or colour sweeps across muscles
+//!                                                  (passes::iterate_all)
+//!       SinewSystems::ApplyPredictions  v = (p − x)/h, x = p (passes::end_substep_all)
 //!   SinewSystems::WriteBack         render meshes, timings
 //! ```
 //!
-//! Muscles are processed with `par_iter` across entities (unless
-//! [`SinewSettings::threads`] is 1).
+//! ## Threads
+//!
+//! The plug-in owns a worker pool of [`SinewSettings::threads`] threads
+//! (`1`: none, the step runs on the thread that runs the schedule; `0`: one
+//! per core), as the plain solver does: muscles, and the chunks inside a
+//! large muscle, run on it, and [`SinewSettings::schedule`] and
+//! [`SinewSettings::parallel_threshold`] mean what they mean there. Any
+//! count gives the same bits.
 //!
 //! ## Features
 //!
@@ -75,6 +86,7 @@ pub mod prelude {
     pub use crate::components::{
         ActivationCurve, AttachmentBones, BonePose, BoneTarget, BoneTrack, Compliance, FiberMode,
         Muscle, MuscleSnapshot, MuscleState, MuscleTargets, SensorRig, SinewBone, SkeletonDriver,
+        SolverWorkspace,
     };
     #[cfg(feature = "debug")]
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
@@ -99,8 +111,8 @@ pub enum SinewSystems {
     ReadInputs,
     /// The substep loop (runs [`SinewSubstepSchedule`]).
     Substeps,
-    /// In [`SinewSubstepSchedule`]: bone targets and attachment goals at the
-    /// substep's end time, then the prediction.
+    /// In [`SinewSubstepSchedule`]: bones, their targets and attachment
+    /// goals at the substep's end time, then the prediction.
     Integrate,
     /// In [`SinewSubstepSchedule`]: runs [`SinewIterationSchedule`] N times.
     Iterate,
@@ -115,10 +127,9 @@ pub enum SinewSystems {
 pub enum SinewIterationSystems {
     /// Muscle snapshots published for the muscles that target them.
     UpdateTargets,
-    /// Closest points on the targets.
-    ClosestData,
-    /// Constraint projection.
-    Project,
+    /// Closest points on the targets and constraint projection, in one task
+    /// per muscle (or colour by colour across muscles).
+    Solve,
 }
 
 /// One substep: [`SinewSystems::Integrate`], [`SinewSystems::Iterate`],
@@ -193,7 +204,8 @@ impl SinewPlugin {
         self
     }
 
-    /// Threads: `1` runs everything on the calling thread.
+    /// Worker threads of the solver pool: `1` runs everything on the thread
+    /// that runs the schedule, `0` uses one per core.
     pub fn threads(mut self, threads: u32) -> Self {
         self.settings.threads = threads;
         self
@@ -227,6 +239,7 @@ impl Plugin for SinewPlugin {
             .init_resource::<SimulationState>()
             .init_resource::<StepContext>()
             .init_resource::<systems::ValidSettings>()
+            .init_resource::<systems::SolverWorkers>()
             .add_message::<ResetSimulation>()
             .register_type::<SinewSettings>()
             .register_type::<SinewClock>()
@@ -244,7 +257,7 @@ impl Plugin for SinewPlugin {
             let mut schedule = Schedule::new(label);
             // Both are short chains run many times a frame: the
             // single-threaded executor costs least; muscles still run in
-            // parallel inside each system.
+            // parallel inside each system, on the plug-in's worker pool.
             schedule.set_executor(SingleThreadedExecutor::new());
             app.add_schedule(schedule);
         }
@@ -279,24 +292,27 @@ impl Plugin for SinewPlugin {
             SinewIterationSchedule,
             (
                 SinewIterationSystems::UpdateTargets,
-                SinewIterationSystems::ClosestData,
-                SinewIterationSystems::Project,
+                SinewIterationSystems::Solve,
             )
                 .chain(),
         )
         .add_systems(
             schedule,
             (
-                (systems::animate_bone_tracks, systems::animate_skeletons)
+                (
+                    systems::begin_step,
+                    systems::animate_bone_tracks,
+                    systems::animate_skeletons,
+                )
                     .chain()
                     .in_set(SinewSystems::AnimateBones),
                 (
-                    systems::begin_step,
                     systems::place_new_targets,
                     systems::read_bones,
                     systems::read_activation,
                     systems::sync_muscles,
                     systems::link_muscles,
+                    systems::plan_step,
                 )
                     .chain()
                     .in_set(SinewSystems::ReadInputs),
@@ -307,23 +323,18 @@ impl Plugin for SinewPlugin {
         .add_systems(
             SinewSubstepSchedule,
             (
-                (
-                    systems::pose_bones,
-                    systems::update_attachment_goals,
-                    systems::integrate,
-                )
+                (systems::pose_bones, systems::begin_substep)
                     .chain()
                     .in_set(SinewSystems::Integrate),
                 systems::run_iterations.in_set(SinewSystems::Iterate),
-                systems::apply_predictions.in_set(SinewSystems::ApplyPredictions),
+                systems::end_substep.in_set(SinewSystems::ApplyPredictions),
             ),
         )
         .add_systems(
             SinewIterationSchedule,
             (
                 systems::publish_snapshots.in_set(SinewIterationSystems::UpdateTargets),
-                systems::closest_data.in_set(SinewIterationSystems::ClosestData),
-                systems::project.in_set(SinewIterationSystems::Project),
+                systems::iterate.in_set(SinewIterationSystems::Solve),
             ),
         );
         // Reset, building and scenes run every frame, paused or not, before

@@ -2,7 +2,7 @@
 
 use bevy::prelude::*;
 use sinew_core::constraints::ConstraintKind;
-use sinew_core::{ColorScope, SolverMethod, SolverSettings, StepTimings};
+use sinew_core::{ColorScope, SolverMethod, SolverSettings, StepTimings, SweepSchedule};
 use std::time::Duration;
 
 /// Projection method, as [`SolverMethod`] but reflectable (the panel and
@@ -90,10 +90,10 @@ impl From<SolverMethod> for Method {
     }
 }
 
-/// Global solver settings (the ECS face of [`SolverSettings`]). Edits take
-/// effect on the next frame; [`SinewSettings::to_core`] validates nothing, the
-/// driver does (an invalid value is reported once and the last valid settings
-/// are kept).
+/// Global solver settings (the ECS face of [`SolverSettings`], field for
+/// field, each meaning what it means there). Edits take effect on the next
+/// frame; [`SinewSettings::to_core`] validates nothing, the driver does (an
+/// invalid value is reported once and the last valid settings are kept).
 #[derive(Resource, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Resource)]
 pub struct SinewSettings {
@@ -105,15 +105,25 @@ pub struct SinewSettings {
     pub substeps: u32,
     /// Gravity, m/s² (real units; divided by `space_scale`). Default zero.
     pub gravity: Vec3,
-    /// Multiplies `dt`; `0` freezes the simulation. Default `1`.
+    /// Multiplies `dt` (> 0; pause with [`SimulationState::Paused`]). Default `1`.
     pub time_scale: f32,
     /// Scene units per metre (`100` for centimetres). Default `1`.
     pub space_scale: f32,
     /// Projection method. Default [`Method::Sequential`].
     pub method: Method,
-    /// Worker threads inside one muscle's projection (`1`: none; muscles are
-    /// spread over Bevy's compute pool whatever this says). Default `1`.
+    /// Worker threads of the plug-in's solver pool, which runs muscles and
+    /// the chunks inside a large muscle (`1`: everything on the thread that
+    /// runs the step; `0`: one per core). As in [`SolverSettings::threads`];
+    /// the same bits for any count. Default `1`.
     pub threads: u32,
+    /// How coloured methods use the threads (as
+    /// [`SolverSettings::schedule`]). Default [`SweepSchedule::Auto`].
+    #[reflect(ignore)]
+    pub schedule: SweepSchedule,
+    /// Constraints (and particles) below which a step stays on one thread
+    /// whatever `threads` says (as [`SolverSettings::parallel_threshold`]).
+    /// Default `8192`.
+    pub parallel_threshold: usize,
     /// Frames between two full closest-point searches of a vertex. Default `16`.
     pub full_search_interval: u32,
     /// Frames between two choices of a vertex's closest target. Default `4`.
@@ -147,6 +157,8 @@ impl From<SolverSettings> for SinewSettings {
             space_scale: s.space_scale,
             method: s.method.into(),
             threads: s.threads,
+            schedule: s.schedule,
+            parallel_threshold: s.parallel_threshold,
             full_search_interval: s.full_search_interval,
             choose_interval: s.choose_interval,
             feature_contacts: s.feature_contacts,
@@ -175,10 +187,8 @@ impl SinewSettings {
             feature_contacts: self.feature_contacts,
             walk_every_iteration: self.walk_every_iteration,
             threads: self.threads,
-            // The systems split by muscle (`par_iter`); same bits either way.
-            schedule: sinew_core::SweepSchedule::ByMuscle,
-            // Bevy's task pool decides how the systems split.
-            parallel_threshold: SolverSettings::default().parallel_threshold,
+            schedule: self.schedule,
+            parallel_threshold: self.parallel_threshold,
         }
     }
 }

@@ -11,6 +11,7 @@ use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewT
 use bevy::prelude::*;
 pub use bevy_egui;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+use sinew_core::SweepSchedule;
 
 /// Adds the egui panel (and `EguiPlugin` if the app has none).
 #[derive(Clone, Debug, Default)]
@@ -139,7 +140,7 @@ fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
     }
     ui.add(egui::Slider::new(&mut s.iterations, 1..=50).text("iterations"));
     ui.add(egui::Slider::new(&mut s.substeps, 1..=16).text("substeps"));
-    ui.add(egui::Slider::new(&mut s.time_scale, 0.0..=2.0).text("time scale"));
+    ui.add(egui::Slider::new(&mut s.time_scale, 0.05..=2.0).text("time scale"));
     ui.horizontal(|ui| {
         ui.label("gravity m/s²");
         ui.add(
@@ -159,6 +160,22 @@ fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
         );
     });
     ui.add(egui::Slider::new(&mut s.threads, 0..=16).text("threads (0 = all)"));
+    let label = |schedule| match schedule {
+        SweepSchedule::Auto => "auto",
+        SweepSchedule::ByMuscle => "by muscle",
+        SweepSchedule::ByColor => "by colour",
+    };
+    egui::ComboBox::from_label("colour sweeps")
+        .selected_text(label(s.schedule))
+        .show_ui(ui, |ui| {
+            for schedule in [
+                SweepSchedule::Auto,
+                SweepSchedule::ByMuscle,
+                SweepSchedule::ByColor,
+            ] {
+                ui.selectable_value(&mut s.schedule, schedule, label(schedule));
+            }
+        });
 }
 
 fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {

@@ -4,12 +4,12 @@
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
-use sinew_core::Solver;
 use sinew_core::animation::TransformKey;
 use sinew_core::glam::Vec3 as CoreVec3;
 use sinew_core::mesh::primitives::thesis_oval;
 use sinew_core::muscle::{MuscleParams, Roots};
 use sinew_core::scene::{Scene, builtin};
+use sinew_core::{Solver, SweepSchedule};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -108,16 +108,19 @@ fn muscles_in_parallel_give_the_same_bits() {
     let (scene, base) = p3();
     let (mut plain, mut app, root) = both_drivers(scene, &base);
     step_both(&mut plain, &mut app, 1);
-    // par_iter over muscles on the compute pool, rayon inside them.
-    app.world_mut().resource_mut::<SinewSettings>().threads = 4;
+    // Muscles and their chunks on the plug-in's pool of 4 (P3 is below the
+    // default threshold, so it is lowered), the plain driver on one thread.
+    let mut settings = app.world_mut().resource_mut::<SinewSettings>();
+    settings.threads = 4;
+    settings.parallel_threshold = 0;
     step_both(&mut plain, &mut app, 99);
     assert_same_bits(&plain, &app, root);
 }
 
 #[test]
 fn global_sweeps_give_the_bits_of_muscle_by_muscle_runs() {
-    // The plain solver on 2 threads runs colour c of every muscle in one
-    // parallel sweep; the Bevy systems run each muscle's colours in turn.
+    // The app on 2 threads sweeps colour c of every muscle together; the
+    // plain solver on one thread runs each muscle's colours in turn.
     for method in [
         Method::ColoredGlobal,
         Method::Hybrid {
@@ -127,9 +130,24 @@ fn global_sweeps_give_the_bits_of_muscle_by_muscle_runs() {
     ] {
         let (mut scene, base) = p3();
         scene.settings.method = method.into();
-        scene.settings.threads = 2;
+        scene.settings.threads = 1;
         let (mut plain, mut app, root) = both_drivers(scene, &base);
-        step_both(&mut plain, &mut app, 60);
+        step_both(&mut plain, &mut app, 1);
+        let mut settings = app.world_mut().resource_mut::<SinewSettings>();
+        settings.threads = 2;
+        settings.parallel_threshold = 0;
+        settings.schedule = SweepSchedule::ByColor;
+        let mut swept = 0;
+        for _ in 0..59 {
+            step_both(&mut plain, &mut app, 1);
+            swept += app.world().resource::<SinewTimings>().step.sweeps_by_color;
+        }
+        assert_eq!(
+            swept,
+            59 * 5,
+            "{method:?}: every iteration sweeps by colour"
+        );
+        assert_eq!(plain.timings().sweeps_by_color, 0);
         assert_same_bits(&plain, &app, root);
     }
 }

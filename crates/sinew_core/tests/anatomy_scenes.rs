@@ -166,7 +166,8 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
     // bone whose box it is in: pushed into a bone, it switches to it. (Only
     // targets in a vertex's contact band are candidates: the band spans the
     // arm here.)
-    use sinew_core::solver::stage::{ClosestSchedule, closest_data};
+    use sinew_core::solver::ClosestSchedule;
+    use sinew_core::solver::pipeline::closest_data;
     let path = scene_path("t3");
     let mut scene = Scene::load(&path).unwrap();
     for m in &mut scene.muscles {
@@ -184,13 +185,13 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
         interval: u32::MAX,
         choose_interval: u32::MAX,
         feature_contacts: true,
-        active: true,
+        first_of_frame: true,
         walk: true,
-        substep_start: true,
-        parallel: false,
+        first_of_substep: true,
+        split: false,
     };
     let mut moved = 0;
-    for m in solver.muscles() {
+    for (m, ws) in solver.muscles().iter().zip(solver.workspaces()) {
         let c = &m.constraints.sliding;
         for i in 0..c.len() {
             let chosen = c.target[i] as usize;
@@ -200,15 +201,15 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
             let v = c.particle[i] as usize;
             for bone in (0..c.targets).filter(|&s| c.rigid[s] && c.rest_outside[i * c.targets + s])
             {
-                let surface = &targets[m.target_ids[bone]];
+                let surface = &targets[ws.target_ids[bone]];
                 let hit = surface.closest(m.p[v], None).unwrap();
-                let mut m = m.clone();
+                let (mut m, mut ws) = (m.clone(), ws.clone());
                 m.p[v] = hit.point - 2e-3 * hit.normal;
                 let inside = surface.closest(m.p[v], None).unwrap().signed_distance < -1e-3;
                 if !inside || !surface.contains(m.p[v]) {
                     continue;
                 }
-                closest_data(&mut m, targets, keep);
+                closest_data(&mut m, &mut ws, targets, keep);
                 // It now follows a bone: this one, or where two bones meet
                 // one its walk finds it deeper in.
                 let now = m.constraints.sliding.target[i] as usize;

@@ -252,36 +252,16 @@ pub struct Muscle {
     pub attachments: Vec<Attachment>,
     /// Targets, in the order given.
     pub targets: Vec<TargetRef>,
-    /// Solver target index of each entry of `targets` (set when linked).
-    pub target_ids: Vec<usize>,
     /// Constraint batches.
     pub constraints: MuscleConstraints,
-    /// The last closest triangle per (Sliding constraint, target slot),
-    /// `warm[i * targets + t]`, or [`crate::closest::NO_TRIANGLE`]: where the next search
-    /// of that target starts (4 bytes a cell keeps the full body's table in
-    /// cache).
-    pub warm: Vec<u32>,
-    /// Bone contacts' clearance per (Sliding constraint, target slot), as
-    /// `warm`: where the vertex was, in the bone's frame, and how far it
-    /// was from the bone then (0 = unknown). A rigid bone's distance is
-    /// 1-Lipschitz in the vertex position, so while the vertex stays within
-    /// that distance of that point it cannot have entered the bone.
-    pub clearance: Vec<glam::Vec4>,
-    /// Bone contacts' margin per Sliding constraint within a substep (bones
-    /// do not move between its iterations): where the vertex was in the
-    /// world at the substep's first check, and how far it can move from
-    /// there before one of its `clearance` cells needs a check.
-    pub bone_margin: Vec<glam::Vec4>,
     /// Per-vertex maps given at build time.
     pub maps: VertexMaps,
     /// Activation was outside [0, 1] and has been reported.
     pub activation_reported: bool,
-    /// Colour groups for [`crate::SolverMethod::Colored`], built on first use
-    /// and dropped when the target connections are rebuilt.
-    pub colors: Option<crate::solver::coloring::ColorPlan>,
-    /// Incidence and scratch for [`crate::SolverMethod::Jacobi`], built on
-    /// first use and dropped when the target connections are rebuilt.
-    pub jacobi: Option<crate::solver::jacobi::JacobiState>,
+    /// Bumped whenever the constraints are relinked, attached or switched
+    /// on or off: what the solver derived from them (colour plans, Jacobi
+    /// incidence, in its `MuscleWorkspace`) is stale once it differs.
+    topology: u64,
 }
 
 impl Muscle {
@@ -425,15 +405,10 @@ impl Muscle {
             surface_count: n,
             attachments: Vec::new(),
             targets,
-            target_ids: Vec::new(),
             constraints: MuscleConstraints::default(),
-            warm: Vec::new(),
-            clearance: Vec::new(),
-            bone_margin: Vec::new(),
             maps,
             activation_reported: false,
-            colors: None,
-            jacobi: None,
+            topology: 0,
         };
         muscle.build_own_constraints(closed);
         for (a, v) in attachments.iter().zip(attach_vertices) {
@@ -512,6 +487,18 @@ impl Muscle {
         }
     }
 
+    /// The topology counter (see the field's docs).
+    pub fn topology(&self) -> u64 {
+        self.topology
+    }
+
+    /// Marks the constraints as changed: call it after editing a batch's
+    /// particle indices or switching constraints on or off by hand (the
+    /// methods of this type do it themselves).
+    pub fn touch_topology(&mut self) {
+        self.topology = self.topology.wrapping_add(1);
+    }
+
     /// Adds one attachment (an Attach and, with an internal structure, a
     /// BranchAttach on the internal point nearest the vertex).
     pub fn add_attachment(
@@ -543,6 +530,7 @@ impl Muscle {
                 .push(ip, pi, 0.0, self.params.compliance.branch_attach);
         }
         self.attachments.push(att);
+        self.touch_topology();
     }
 
     /// Applies the current activation: clamps it (reporting once), then updates
@@ -657,6 +645,7 @@ impl Muscle {
     /// type compliances and weights (`α / weight`; weight 0 disables, and so
     /// does a vertex out of every target's reach).
     pub fn relink_weights(&mut self) {
+        self.touch_topology();
         let comp = self.params.compliance;
         let weighted = |alpha: f32, w: f32| if w > 0.0 { alpha / w } else { f32::INFINITY };
         for i in 0..self.constraints.sliding.len() {

@@ -24,7 +24,7 @@
 //! colours plus a Jacobi tail. `sweep.rs` runs them.
 
 use super::jacobi::JacobiState;
-use super::sweep::{self, PlannedConstraint, Segment, SweepPlan};
+use super::sweep::{PlannedConstraint, Segment, SweepPlan};
 use crate::constraints::{ConstraintBatch, ConstraintCounts, ConstraintKind, Correction};
 use crate::muscle::Muscle;
 
@@ -569,6 +569,13 @@ impl ColorPlan {
         &self.sweep
     }
 
+    /// Runs the Jacobi tail of the plan on `m`, if it has one (Hybrid).
+    pub(super) fn project_tail(&mut self, m: &mut Muscle, inv_h2: f32, omega: f32, split: bool) {
+        if let Some(tail) = &mut self.tail {
+            super::jacobi::project_jacobi(m, tail, inv_h2, omega, split);
+        }
+    }
+
     /// The constraints solved Jacobi after the colours (Hybrid), if any.
     pub fn tail(&self) -> &[ConstraintRef] {
         self.tail.as_ref().map_or(&[], |t| &t.jacobi)
@@ -605,56 +612,6 @@ pub fn commit(m: &mut Muscle, c: ConstraintRef, correction: &Correction) {
         ConstraintKind::Internal => k.internal.commit(i, correction, p),
         ConstraintKind::Fiber => k.fiber.commit(i, correction, p),
         ConstraintKind::Volume => {}
-    }
-}
-
-/// One coloured sweep over every constraint of `m` but Volume: the colours
-/// one after the other; inside a colour the units in any order or in
-/// parallel (chunks on the current rayon pool when `parallel`), each unit
-/// Gauss–Seidel in its own order, then the Jacobi tail if the plan has one.
-/// Units of a colour share no particle, so the result is the same for any
-/// thread count. The plan is (re)built when missing, of another kind, or
-/// (with `check_plan`) stale ([`ColorPlan::fits`]).
-pub fn project_colored(
-    m: &mut Muscle,
-    order: &[ConstraintKind],
-    kind: PlanKind,
-    inv_h2: f32,
-    omega: f32,
-    parallel: bool,
-    check_plan: bool,
-) {
-    let mut plan = take_plan(m, order, kind, check_plan);
-    sweep::sweep_muscle(m, plan.sweep(), inv_h2, parallel);
-    project_tail(m, &mut plan, inv_h2, omega, parallel);
-    m.colors = Some(plan);
-}
-
-/// `m`'s plan of `kind`, taken out of `m`; built if missing, of another
-/// kind, not sized for `m`, or (when `check` asks for the full compare)
-/// stale.
-pub(crate) fn take_plan(
-    m: &mut Muscle,
-    order: &[ConstraintKind],
-    kind: PlanKind,
-    check: bool,
-) -> ColorPlan {
-    match m.colors.take() {
-        Some(plan) if plan.kind == kind && plan.sized_for(m) && (!check || plan.fits(m)) => plan,
-        _ => ColorPlan::build(m, order, kind),
-    }
-}
-
-/// Runs the Jacobi tail of `plan` on `m`, if any.
-pub(crate) fn project_tail(
-    m: &mut Muscle,
-    plan: &mut ColorPlan,
-    inv_h2: f32,
-    omega: f32,
-    parallel: bool,
-) {
-    if let Some(tail) = &mut plan.tail {
-        super::jacobi::project_jacobi(m, tail, inv_h2, omega, parallel);
     }
 }
 

@@ -24,17 +24,19 @@
 //!   vertices inside DELT2): a vertex inside another muscle, or next to where
 //!   the two surfaces cross, cannot keep a gap both muscles agree on.
 
+use super::workspace::MuscleWorkspace;
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource};
 use crate::muscle::{Muscle, SurfaceAnchor};
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 
 /// A target slot and the closest point on it.
 type Candidate = (u32, ClosestHit);
 
-/// Creates one Sliding, Soft and Hard constraint per surface vertex against
-/// the muscle's targets, from the current positions (module docs).
-pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
-    let nt = m.target_ids.len();
+/// Creates one Sliding, Soft and Hard constraint per surface vertex of `m`
+/// against its targets (`ws.target_ids` index `targets`), from the current
+/// positions (module docs), and resets the workspace's closest-data caches.
+pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, targets: &T) {
+    let nt = ws.target_ids.len();
     let n = m.surface_count;
     let c = &mut m.constraints;
     c.sliding = Default::default();
@@ -42,15 +44,14 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
     c.hard = Default::default();
     c.soft_anchor.clear();
     c.hard_anchor.clear();
-    m.colors = None;
-    m.jacobi = None;
-    m.warm = vec![NO_TRIANGLE; n * nt];
-    m.clearance = vec![Vec4::ZERO; n * nt];
-    m.bone_margin = vec![Vec4::ZERO; n];
+    let mut warm = vec![NO_TRIANGLE; n * nt];
     if nt == 0 {
+        m.relink_weights();
+        ws.warm = warm;
+        ws.reset_caches(m);
         return;
     }
-    let surfaces: Vec<_> = m.target_ids.iter().map(|&t| targets.target(t)).collect();
+    let surfaces: Vec<_> = ws.target_ids.iter().map(|&t| targets.target(t)).collect();
     c.sliding.targets = nt;
     c.sliding.mode = m.params.sliding_mode;
     c.sliding.rigid = surfaces
@@ -81,7 +82,7 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
         let mut tie: Option<Candidate> = None;
         for (slot, surface) in surfaces.iter().enumerate() {
             let cell = v * nt + slot;
-            m.warm[cell] = hits[cell].map_or(NO_TRIANGLE, |h| h.triangle);
+            warm[cell] = hits[cell].map_or(NO_TRIANGLE, |h| h.triangle);
             let Some(h) = hits[cell] else {
                 c.sliding.rest_gap.push(f32::INFINITY);
                 c.sliding.rest_outside.push(true);
@@ -159,11 +160,14 @@ pub fn link_muscle<T: TargetSet + ?Sized>(m: &mut Muscle, targets: &T) {
                 .rest_outside
                 .extend_from_slice(&out[v * nt..(v + 1) * nt]);
         }
-        let all = std::mem::take(&mut m.warm);
+        let all = std::mem::take(&mut warm);
         for &v in &c.sliding.particle {
-            m.warm
-                .extend_from_slice(&all[v as usize * nt..(v as usize + 1) * nt]);
+            warm.extend_from_slice(&all[v as usize * nt..(v as usize + 1) * nt]);
         }
     }
     m.relink_weights();
+    let cells = warm.len();
+    ws.reset_caches(m);
+    debug_assert_eq!(ws.warm.len(), cells);
+    ws.warm = warm;
 }

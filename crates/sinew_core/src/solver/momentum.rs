@@ -18,7 +18,7 @@ use crate::muscle::Muscle;
 use glam::{Mat3, Vec3};
 
 /// Linear and angular momentum of a free muscle about its centre of mass,
-/// recorded at the start of a substep (see [`super::stage::begin_substep`]).
+/// recorded at the start of a substep (see [`super::pipeline::begin_substep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RigidMomentum {
     linear: Vec3,
@@ -28,7 +28,7 @@ pub struct RigidMomentum {
 /// Whether the solver conserves `m`'s momentum explicitly: no attachments,
 /// no targets, and every particle dynamic.
 pub(crate) fn is_free(m: &Muscle) -> bool {
-    m.attachments.is_empty() && m.target_ids.is_empty() && m.w.iter().all(|&w| w > 0.0)
+    m.attachments.is_empty() && m.targets.is_empty() && m.w.iter().all(|&w| w > 0.0)
 }
 
 fn centre_of_mass(m: &Muscle) -> (f32, Vec3) {

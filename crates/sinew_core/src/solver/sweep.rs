@@ -363,66 +363,18 @@ pub(super) fn sweep_muscle(m: &mut Muscle, plan: &SweepPlan, inv_h2: f32, parall
     m.constraints.restore_lambdas(lambdas);
 }
 
-/// Runs colour `c` of every muscle in one parallel sweep, for `c` up to the
-/// largest colour count (SPEC §9.3, global scope): `plans[i]` is muscle
-/// `i`'s plan, `None` for a muscle that sits this iteration out. Each sweep
-/// splits into (muscle, chunk) tasks on the current rayon pool, so a large
-/// muscle spreads over threads and small ones share them.
-pub(super) fn sweep_global(muscles: &mut [Muscle], plans: &[Option<&SweepPlan>], inv_h2: f32) {
-    use rayon::prelude::*;
-    let mut lambdas: Vec<Option<MuscleLambdas>> = muscles
-        .iter_mut()
-        .zip(plans)
-        .map(|(m, plan)| {
-            plan.map(|plan| {
-                assert!(plan.sized_for(m), "colour plan built for another topology");
-                m.constraints.take_lambdas()
-            })
-        })
-        .collect();
-    {
-        let sweeps: Vec<Option<MuscleSweep>> = muscles
-            .iter_mut()
-            .zip(plans)
-            .zip(lambdas.iter_mut())
-            .map(|((m, plan), l)| match (plan, l) {
-                (Some(plan), Some(l)) => Some(MuscleSweep::new(
-                    &mut m.p,
-                    &m.w,
-                    &m.constraints,
-                    l,
-                    plan,
-                    inv_h2,
-                )),
-                _ => None,
-            })
-            .collect();
-        let colors = plans
-            .iter()
-            .flatten()
-            .map(|p| p.color_count())
-            .max()
-            .unwrap_or(0);
-        let mut tasks: Vec<(usize, usize)> = Vec::new();
-        for color in 0..colors {
-            tasks.clear();
-            for (i, s) in sweeps.iter().enumerate() {
-                if let Some(s) = s.as_ref().filter(|s| color < s.plan.color_count()) {
-                    tasks.extend((0..s.plan.chunk_count(color)).map(|k| (i, k)));
-                }
-            }
-            tasks.par_iter().for_each(|&(i, k)| {
-                if let Some(s) = &sweeps[i] {
-                    s.run_chunk(color, k);
-                }
-            });
-        }
+/// Runs colour `color` of `plan` on `m`, its chunks in parallel on the
+/// current rayon pool: one muscle's share of a sweep across muscles (SPEC
+/// §9.3, global scope). Nothing for a colour `plan` does not have.
+pub(super) fn sweep_color(m: &mut Muscle, plan: &SweepPlan, color: usize, inv_h2: f32) {
+    if color >= plan.color_count() {
+        return;
     }
-    for (m, l) in muscles.iter_mut().zip(lambdas) {
-        if let Some(l) = l {
-            m.constraints.restore_lambdas(l);
-        }
-    }
+    assert!(plan.sized_for(m), "colour plan built for another topology");
+    let mut lambdas = m.constraints.take_lambdas();
+    MuscleSweep::new(&mut m.p, &m.w, &m.constraints, &mut lambdas, plan, inv_h2)
+        .run_color(color, true);
+    m.constraints.restore_lambdas(lambdas);
 }
 
 #[cfg(test)]

@@ -1,14 +1,24 @@
 //! Per-type projection and gradient checks on a real P1 muscle.
 
-use super::stage::{closest_data, project};
+use super::closest_data::closest_data;
+use super::pipeline::gauss_seidel as project;
 use super::*;
+use crate::animation::interpolate_rigid;
+use crate::constraints::ConstraintKind;
 use crate::constraints::ConstraintKind as K;
 use crate::scene::builtin;
+use glam::Vec3;
 
 /// P1 after one step (goals of Soft/Hard/Sliding filled), predictions
 /// perturbed so that every constraint is violated. The contact band spans
 /// the whole oval, so every vertex slides on the plane.
 fn violated_p1() -> (Solver, Muscle) {
+    let (solver, m, _) = violated_p1_with_workspace();
+    (solver, m)
+}
+
+/// [`violated_p1`] with the muscle's workspace.
+fn violated_p1_with_workspace() -> (Solver, Muscle, MuscleWorkspace) {
     let mut scene = builtin("P1").unwrap();
     scene.muscles[0].params.contact_reach = 1.0;
     let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
@@ -18,8 +28,14 @@ fn violated_p1() -> (Solver, Muscle) {
         let k = i as f32;
         *p += 0.004 * Vec3::new((k * 1.3).sin(), (k * 2.1).cos(), (k * 0.7).sin());
     }
-    closest_data(&mut m, solver.targets.as_slice(), ClosestSchedule::ALWAYS);
-    (solver, m)
+    let mut ws = solver.workspaces()[0].clone();
+    closest_data(
+        &mut m,
+        &mut ws,
+        solver.targets.as_slice(),
+        ClosestSchedule::ALWAYS,
+    );
+    (solver, m, ws)
 }
 
 /// Keeps only constraint `keep` of the batch of `kind` (and empties the others).
@@ -491,7 +507,7 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
             s.step();
         }
         let m = &s.muscles()[0];
-        if let Some(plan) = &m.colors {
+        if let Some(plan) = s.workspaces()[0].plan() {
             let chunks = (0..plan.color_count()).map(|c| plan.chunk_count(c)).max();
             assert!(chunks > Some(1), "{method:?}: no colour was split");
         }
@@ -533,10 +549,10 @@ fn a_plan_is_rebuilt_when_a_constraint_moves_other_particles() {
     let f = &mut m.constraints.fiber;
     let other = (0..m.surface_count as u32).find(|&p| p != f.a[0] && p != f.b[0]);
     f.b[0] = other.unwrap();
-    assert!(!m.colors.as_ref().unwrap().fits(m));
+    assert!(!s.workspaces()[0].plan().unwrap().fits(&s.muscles()[0]));
     s.step();
     let m = &s.muscles()[0];
-    assert!(m.colors.as_ref().unwrap().fits(m));
+    assert!(s.workspaces()[0].plan().unwrap().fits(m));
     assert!(m.x.iter().all(|p| p.is_finite()));
 }
 
@@ -649,9 +665,9 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
         ..ClosestSchedule::ALWAYS
     };
     let later = ClosestSchedule {
-        active: false,
+        first_of_frame: false,
         walk: false,
-        substep_start: false,
+        first_of_substep: false,
         ..first
     };
     let region = |b: Vec3| b.cmpgt(Vec3::ZERO).bitmask();
@@ -666,16 +682,16 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
             solver.step();
         }
         let targets = solver.targets.as_slice();
-        for m in solver.muscles() {
-            let mut m = m.clone();
-            closest_data(&mut m, targets, first);
+        for (m, ws) in solver.muscles().iter().zip(solver.workspaces()) {
+            let (mut m, mut ws) = (m.clone(), ws.clone());
+            closest_data(&mut m, &mut ws, targets, first);
             for (i, &v) in m.constraints.sliding.particle.iter().enumerate() {
                 let n = m.constraints.sliding.normal[i];
                 m.p[v as usize] += 1e-3 * n.any_orthonormal_vector();
             }
-            let mut exact = m.clone();
-            closest_data(&mut exact, targets, first);
-            closest_data(&mut m, targets, later);
+            let (mut exact, mut exact_ws) = (m.clone(), ws.clone());
+            closest_data(&mut exact, &mut exact_ws, targets, first);
+            closest_data(&mut m, &mut ws, targets, later);
             let (fast, exact) = (&m.constraints.sliding, &exact.constraints.sliding);
             total += fast.len();
             for i in 0..fast.len() {

@@ -22,6 +22,10 @@ pub struct StepTimings {
     pub write_back: Duration,
     /// Clock reads the timers made during the step (0 with timers off).
     pub clock_reads: u32,
+    /// Iterations whose colour sweeps ran colour by colour across muscles
+    /// ([`super::SweepSchedule::ByColor`], or chosen by `Auto`) instead of
+    /// muscle by muscle.
+    pub sweeps_by_color: u32,
 }
 
 impl StepTimings {
@@ -56,13 +60,17 @@ impl StepTimings {
 }
 
 /// Chained lap timer: one `Instant::now()` per block boundary, none when off.
-pub(crate) struct Stopwatch {
+/// A driver starts one per step (or per system) and laps it into the
+/// [`StepTimings`] block that just ran.
+#[derive(Debug)]
+pub struct Stopwatch {
     last: Option<Instant>,
     reads: u32,
 }
 
 impl Stopwatch {
-    pub(crate) fn new(enabled: bool) -> Self {
+    /// A stopwatch started now, or one that reads no clock when `!enabled`.
+    pub fn new(enabled: bool) -> Self {
         Self {
             last: enabled.then(Instant::now),
             reads: u32::from(enabled),
@@ -71,7 +79,7 @@ impl Stopwatch {
 
     /// Adds the time since the previous lap to `slot`.
     #[inline]
-    pub(crate) fn lap(&mut self, slot: &mut Duration) {
+    pub fn lap(&mut self, slot: &mut Duration) {
         if let Some(last) = &mut self.last {
             let now = Instant::now();
             *slot += now - *last;
@@ -80,8 +88,13 @@ impl Stopwatch {
         }
     }
 
+    /// Whether it reads the clock (timers on).
+    pub fn is_running(&self) -> bool {
+        self.last.is_some()
+    }
+
     /// Clock reads so far.
-    pub(crate) fn reads(&self) -> u32 {
+    pub fn reads(&self) -> u32 {
         self.reads
     }
 }
@@ -90,7 +103,7 @@ impl Stopwatch {
     /// Splits the time since the previous lap between `slots` in
     /// proportion to `shares` (evenly when every share is zero), and counts
     /// `reads` clock reads made elsewhere (by a [`TaskSplit`]).
-    pub(crate) fn lap_split<const N: usize>(
+    pub fn lap_split<const N: usize>(
         &mut self,
         slots: [&mut Duration; N],
         shares: [Duration; N],
@@ -112,15 +125,17 @@ impl Stopwatch {
 
 /// Time that the tasks of one parallel pass spend in each of two parts,
 /// summed over tasks and threads; the pass's wall time is then split in
-/// that proportion ([`Stopwatch::lap_split`]). Nothing is read when off.
-pub(crate) struct TaskSplit {
+/// that proportion. Nothing is read when off.
+#[derive(Debug)]
+pub struct TaskSplit {
     enabled: bool,
     nanos: [AtomicU64; 2],
     reads: AtomicU32,
 }
 
 impl TaskSplit {
-    pub(crate) fn new(enabled: bool) -> Self {
+    /// A split that measures when `enabled`.
+    pub fn new(enabled: bool) -> Self {
         Self {
             enabled,
             nanos: [AtomicU64::new(0), AtomicU64::new(0)],
@@ -130,7 +145,7 @@ impl TaskSplit {
 
     /// The start of a task's first part (`None` when off).
     #[inline]
-    pub(crate) fn start(&self) -> Option<Instant> {
+    pub fn start(&self) -> Option<Instant> {
         self.enabled.then(|| {
             self.reads.fetch_add(1, Ordering::Relaxed);
             Instant::now()
@@ -140,7 +155,7 @@ impl TaskSplit {
     /// Adds the time since `since` to part `part`; returns now, the start
     /// of the next part.
     #[inline]
-    pub(crate) fn lap(&self, since: Option<Instant>, part: usize) -> Option<Instant> {
+    pub fn lap(&self, since: Option<Instant>, part: usize) -> Option<Instant> {
         since.map(|since| {
             let now = Instant::now();
             let spent = (now - since).as_nanos() as u64;
@@ -151,14 +166,14 @@ impl TaskSplit {
     }
 
     /// The time spent in each part, over every task.
-    pub(crate) fn shares(&self) -> [Duration; 2] {
+    pub fn shares(&self) -> [Duration; 2] {
         self.nanos
             .each_ref()
             .map(|n| Duration::from_nanos(n.load(Ordering::Relaxed)))
     }
 
     /// Clock reads made.
-    pub(crate) fn reads(&self) -> u32 {
+    pub fn reads(&self) -> u32 {
         self.reads.load(Ordering::Relaxed)
     }
 }

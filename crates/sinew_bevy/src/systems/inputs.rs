@@ -1,0 +1,306 @@
+//! Read inputs: the step's settings, bone poses, activation, parameters,
+//! target links, and the step's parameters (core: `Solver::step`'s
+//! `begin_step` and `read_inputs`).
+
+use super::{SolverWorkers, StepContext, ValidSettings, pair, surface_of};
+use crate::components::*;
+use crate::settings::{SinewClock, SinewSettings, SinewTimings};
+use bevy::prelude::*;
+use sinew_core::glam::Affine3A;
+use sinew_core::solver::{FrameParams, Parallelism, Stopwatch, passes, pipeline};
+
+/// Validates the settings when they changed (keeping the last valid ones,
+/// with a warning once, when they fail) and opens the step: its end time is
+/// known before the bones are animated.
+pub(crate) fn begin_step(
+    settings: Res<SinewSettings>,
+    clock: Res<SinewClock>,
+    mut valid: ResMut<ValidSettings>,
+    mut ctx: ResMut<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+) {
+    timings.start_step();
+    if settings.is_changed() || valid.settings.is_none() {
+        let core = settings.to_core();
+        match core.validate() {
+            Ok(()) => {
+                ctx.settings.clone_from(&core);
+                valid.settings = Some(core);
+                valid.rejected = None;
+            }
+            Err(e) => {
+                if valid.rejected.as_ref() != Some(&*settings) {
+                    warn!("sinew: settings rejected, keeping the last valid ones: {e}");
+                    valid.rejected = Some(settings.clone());
+                }
+                ctx.settings = valid.settings.clone().unwrap_or_default();
+            }
+        }
+    }
+    let s = &ctx.settings;
+    ctx.end_time = clock.time + s.dt * s.time_scale;
+}
+
+/// Writes keyframed bones' transforms for the end time of the coming step.
+pub(crate) fn animate_bone_tracks(
+    ctx: Res<StepContext>,
+    mut bones: Query<(&BoneTrack, &mut Transform)>,
+) {
+    for (track, mut transform) in &mut bones {
+        if track.0.keys.is_empty() {
+            continue;
+        }
+        let (rotation, translation) = track.0.sample_parts(ctx.end_time);
+        transform.rotation = rotation;
+        transform.translation = translation;
+    }
+}
+
+/// Poses skeleton-driven bones for the end time of the coming step (their
+/// transforms, for rendering and children; the solver reads the skeleton's
+/// own frames, [`read_bones`]).
+pub(crate) fn animate_skeletons(
+    ctx: Res<StepContext>,
+    skeletons: Query<&SkeletonDriver>,
+    mut transforms: Query<&mut Transform>,
+    mut scratch: Local<(Vec<f32>, Vec<Affine3A>)>,
+) {
+    let (values, world) = &mut *scratch;
+    for driver in &skeletons {
+        driver.rig.pose_at(ctx.end_time, values, world);
+        for &(entity, body) in &driver.bones {
+            if let (Ok(mut t), Some(pose)) = (transforms.get_mut(entity), world.get(body)) {
+                *t = Transform::from_matrix(Mat4::from(*pose));
+            }
+        }
+    }
+}
+
+/// A bone target added since the last step starts where its bone was.
+pub(crate) fn place_new_targets(
+    mut new_targets: Query<(&BonePose, &mut BoneTarget), Added<BoneTarget>>,
+) {
+    for (pose, mut target) in &mut new_targets {
+        let at = if pose.initialized {
+            pose.current
+        } else {
+            Affine3A::IDENTITY
+        };
+        target.0.set_transform(at);
+    }
+}
+
+/// Reads every bone's pose after transform propagation; a skeleton's bones
+/// take its body frames exactly (a transform round trip would round them).
+pub(crate) fn read_bones(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut bones: Query<(&GlobalTransform, &mut BonePose)>,
+    skeletons: Query<&SkeletonDriver>,
+    mut scratch: Local<(Vec<f32>, Vec<Affine3A>)>,
+) {
+    let mut clock = Stopwatch::new(ctx.settings.timers);
+    for (global, mut pose) in &mut bones {
+        let now = global.affine();
+        if pose.initialized {
+            pose.previous = pose.current;
+        } else {
+            pose.previous = now;
+            pose.initialized = true;
+        }
+        pose.current = now;
+    }
+    let (values, world) = &mut *scratch;
+    for driver in &skeletons {
+        driver.rig.pose_at(ctx.end_time, values, world);
+        for &(entity, body) in &driver.bones {
+            if let (Ok((_, mut pose)), Some(frame)) = (bones.get_mut(entity), world.get(body)) {
+                pose.current = *frame;
+            }
+        }
+    }
+    clock.lap(&mut timings.step.read_inputs);
+}
+
+/// Activation curves and sensor rigs set the activation of driven muscles.
+pub(crate) fn read_activation(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut muscles: Query<(&mut Muscle, Option<&ActivationCurve>)>,
+    mut rigs: Query<&mut SensorRig>,
+    bones: Query<&BonePose>,
+    mut poses: Local<Vec<Affine3A>>,
+) {
+    let mut clock = Stopwatch::new(ctx.settings.timers);
+    for (mut muscle, curve) in &mut muscles {
+        if let Some(curve) = curve
+            && muscle.driven
+        {
+            muscle.activation = curve.0.sample(ctx.end_time);
+        }
+    }
+    let dt = ctx.settings.dt * ctx.settings.time_scale;
+    for mut rig in &mut rigs {
+        let rig = &mut *rig;
+        poses.clear();
+        poses.extend(
+            rig.bones
+                .iter()
+                .map(|&b| bones.get(b).map_or(Affine3A::IDENTITY, |pose| pose.current)),
+        );
+        let targets = &rig.muscles;
+        rig.rig.update(&poses, ctx.end_time, dt, |m, a| {
+            if let Some(&entity) = targets.get(m)
+                && let Ok((mut muscle, _)) = muscles.get_mut(entity)
+                && muscle.driven
+            {
+                muscle.activation = a;
+            }
+        });
+    }
+    clock.lap(&mut timings.step.read_inputs);
+}
+
+/// Pushes each muscle's live parameters into its built state (an invalid
+/// value is reported once and the last valid parameters are kept).
+pub(crate) fn sync_muscles(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut muscles: Query<(&Muscle, &mut MuscleState), Changed<Muscle>>,
+) {
+    let mut clock = Stopwatch::new(ctx.settings.timers);
+    for (muscle, mut state) in &mut muscles {
+        let state = &mut *state;
+        if let Some((parameter, value, reason)) = muscle.invalid() {
+            if state.rejected.as_ref() != Some(muscle) {
+                warn!(
+                    "sinew: muscle '{}': {parameter} = {value} {reason}; keeping the last valid parameters",
+                    state.muscle.name
+                );
+                state.rejected = Some(muscle.clone());
+            }
+        } else {
+            state.rejected = None;
+            if muscle.write_to(&mut state.muscle.params) {
+                state.muscle.apply_compliances();
+            }
+        }
+    }
+    clock.lap(&mut timings.step.read_inputs);
+}
+
+/// Drops targets that are gone, lays out the step's target table (every
+/// targeted entity; each muscle's workspace indexes it), marks which
+/// muscles are targeted, and links Sliding / Soft / Hard for muscles that
+/// are new or whose targets changed (core: `Solver::prepare`).
+pub(crate) fn link_muscles(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut workers: ResMut<SolverWorkers>,
+    mut muscles: Query<(
+        Entity,
+        &mut MuscleState,
+        &mut SolverWorkspace,
+        &mut MuscleTargets,
+    )>,
+    bones: Query<&BoneTarget>,
+    mut snapshots: Query<&mut MuscleSnapshot>,
+) {
+    let mut clock = Stopwatch::new(ctx.settings.timers);
+    let SolverWorkers {
+        table,
+        slots,
+        surfaces,
+        ..
+    } = &mut *workers;
+    table.clear();
+    slots.clear();
+    for (entity, mut state, mut ws, mut targets) in &mut muscles {
+        let keep = |&e: &Entity| e != entity && (bones.contains(e) || snapshots.contains(e));
+        if targets.is_changed() {
+            state.linked = false;
+        }
+        if !targets.0.iter().all(keep) {
+            targets.0.retain(keep);
+            state.linked = false;
+        }
+        if state.muscle.constraints.sliding.targets != targets.0.len() {
+            state.linked = false;
+        }
+        let ids = targets.0.iter().map(|&e| {
+            *slots.entry(e).or_insert_with(|| {
+                table.push(e);
+                table.len() - 1
+            })
+        });
+        let ws = &mut ws.0;
+        ws.target_ids.clear();
+        ws.target_ids.extend(ids);
+    }
+    let mut unlinked = false;
+    for (entity, state, _, _) in &muscles {
+        if let Ok(mut snapshot) = snapshots.get_mut(entity) {
+            let targeted = slots.contains_key(&entity);
+            if snapshot.targeted != targeted {
+                snapshot.targeted = targeted;
+            }
+        }
+        unlinked |= !state.linked;
+    }
+    if unlinked {
+        // Link against every targeted muscle's current geometry.
+        for (entity, state, _, _) in &muscles {
+            if let Ok(mut snapshot) = snapshots.get_mut(entity)
+                && snapshot.targeted
+            {
+                pipeline::publish_at(&mut snapshot.surface, &state.muscle, true);
+            }
+        }
+        let published = snapshots.as_readonly();
+        let table_surfaces = table
+            .iter()
+            .map(|&e| surface_of(e, &bones, &published).expect("dropped above when missing"));
+        surfaces.with(table_surfaces, |surfaces| {
+            for (_, mut state, mut ws, _) in &mut muscles {
+                if !state.linked {
+                    pipeline::link(&mut state.muscle, &mut ws.0, &*surfaces);
+                    state.linked = true;
+                }
+            }
+        });
+    }
+    clock.lap(&mut timings.step.read_inputs);
+}
+
+/// The step's parameters ([`FrameParams`]: where the work runs, from the
+/// scene's size and the worker count), then every muscle's rest lengths
+/// and volume ratio from its activation (core: the end of `begin_step`
+/// and `read_inputs`).
+pub(crate) fn plan_step(
+    mut ctx: ResMut<StepContext>,
+    clock: Res<SinewClock>,
+    mut timings: ResMut<SinewTimings>,
+    mut workers: ResMut<SolverWorkers>,
+    mut muscles: Query<(&mut MuscleState, &mut SolverWorkspace)>,
+) {
+    let mut watch = Stopwatch::new(ctx.settings.timers);
+    let workers = &mut *workers;
+    workers.pool.sync(ctx.settings.threads);
+    let (constraints, particles) = muscles.iter().fold((0, 0), |(c, p), (s, _)| {
+        (c + s.muscle.counts().total(), p + s.muscle.x.len())
+    });
+    let parallelism = Parallelism::decide(
+        &ctx.settings,
+        workers.pool.is_some(),
+        constraints,
+        particles,
+    );
+    let frame = FrameParams::new(&ctx.settings, clock.frame, parallelism);
+    ctx.iterations = frame.iterations_for(muscles.iter().map(|(s, _)| &s.muscle));
+    ctx.frame = frame;
+    let always = ctx.settings.parallel_threshold == 0;
+    workers.pairs.with(muscles.iter_mut().map(pair), |muscles| {
+        passes::update_activations(&workers.pool, muscles, always, |w| warn!("sinew: {w}"));
+    });
+    watch.lap(&mut timings.step.read_inputs);
+}

@@ -1,0 +1,241 @@
+//! The substeps and iterations (core: the body of `Solver::step`): bones
+//! posed at the substep, attachment goals, then the core's passes over
+//! every muscle on the plug-in's worker pool.
+
+use super::{SolverWorkers, StepContext, pair, surface_of};
+use crate::components::*;
+use crate::settings::{SimulationState, SinewClock, SinewTimings};
+use crate::{SinewIterationSchedule, SinewSubstepSchedule};
+use bevy::prelude::*;
+use sinew_core::animation::interpolate_rigid;
+use sinew_core::closest::TargetSurface;
+use sinew_core::glam::Affine3A;
+use sinew_core::solver::{Stopwatch, passes, pipeline};
+use std::cell::Cell;
+
+/// Runs the substep schedule once per substep, then closes the step. With
+/// worker threads the substeps run on one of them (as the plain solver's
+/// frame does), so the passes inside reach the others without a
+/// cross-thread hand-off each: systems added to [`SinewSubstepSchedule`]
+/// and [`SinewIterationSchedule`] then run on that worker thread.
+pub(crate) fn run_substeps(world: &mut World) {
+    let threads = world.resource::<SolverWorkers>().pool.threads();
+    match threads {
+        Some(threads) => threads.install(|| substeps(world)),
+        None => substeps(world),
+    }
+    let dt = world.resource::<StepContext>().frame.dt;
+    let mut clock = world.resource_mut::<SinewClock>();
+    clock.time += dt;
+    clock.frame += 1;
+    let mut state = world.resource_mut::<SimulationState>();
+    if *state == SimulationState::StepOnce {
+        *state = SimulationState::Paused;
+    }
+}
+
+/// The substep schedule, once per substep.
+fn substeps(world: &mut World) {
+    let frame = world.resource::<StepContext>().frame;
+    for s in 0..frame.substeps {
+        world.resource_mut::<StepContext>().substep = frame.substep(s);
+        world.run_schedule(SinewSubstepSchedule);
+    }
+}
+
+/// Every bone's pose at the substep's end time — a skeleton's bones from
+/// the skeleton itself, others interpolated rigidly between the frame's
+/// start and end poses — and its target moved there.
+pub(crate) fn pose_bones(
+    ctx: Res<StepContext>,
+    clock: Res<SinewClock>,
+    mut timings: ResMut<SinewTimings>,
+    mut bones: Query<(&mut BonePose, Option<&mut BoneTarget>)>,
+    skeletons: Query<&SkeletonDriver>,
+    mut scratch: Local<(Vec<f32>, Vec<Affine3A>)>,
+) {
+    let mut watch = Stopwatch::new(ctx.settings.timers);
+    let alpha = ctx.substep.alpha;
+    for (mut pose, _) in &mut bones {
+        pose.substep = interpolate_rigid(pose.previous, pose.current, alpha);
+    }
+    if alpha < 1.0 {
+        let (values, world) = &mut *scratch;
+        for driver in &skeletons {
+            driver
+                .rig
+                .pose_at(clock.time + alpha * ctx.frame.dt, values, world);
+            for &(entity, body) in &driver.bones {
+                if let (Ok((mut pose, _)), Some(frame)) = (bones.get_mut(entity), world.get(body)) {
+                    pose.substep = *frame;
+                }
+            }
+        }
+    }
+    for (pose, target) in &mut bones {
+        if let Some(mut target) = target {
+            target.0.set_transform(pose.substep);
+        }
+    }
+    watch.lap(&mut timings.step.update_targets);
+}
+
+/// Attachment goals at the substep's bone poses, then the prediction, pins
+/// and λ = 0 of every muscle ([`passes::begin_substep_all`]).
+pub(crate) fn begin_substep(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut workers: ResMut<SolverWorkers>,
+    mut muscles: Query<(&mut MuscleState, &mut SolverWorkspace, &AttachmentBones)>,
+    poses: Query<&BonePose>,
+) {
+    let mut watch = Stopwatch::new(ctx.settings.timers);
+    for (mut state, _, attached) in &mut muscles {
+        let state = &mut *state;
+        // A bone that has gone keeps its last pose: its attachments stay put.
+        state
+            .bone_poses
+            .resize(attached.0.len(), Affine3A::IDENTITY);
+        for (cached, &bone) in state.bone_poses.iter_mut().zip(&attached.0) {
+            if let Ok(p) = poses.get(bone) {
+                *cached = p.substep;
+            }
+        }
+        let cached = &state.bone_poses;
+        let pose = |b: Option<usize>| {
+            b.and_then(|b| cached.get(b).copied())
+                .unwrap_or(Affine3A::IDENTITY)
+        };
+        pipeline::update_attachment_goals(&mut state.muscle, &pose);
+    }
+    watch.lap(&mut timings.step.update_targets);
+    let workers = &mut *workers;
+    let pairs = muscles.iter_mut().map(|(s, ws, _)| pair((s, ws)));
+    workers.pairs.with(pairs, |muscles| {
+        passes::begin_substep_all(&workers.pool, muscles, &ctx.substep);
+    });
+    watch.lap(&mut timings.step.integrate);
+}
+
+/// Runs the iteration schedule once per iteration.
+pub(crate) fn run_iterations(world: &mut World) {
+    let ctx = world.resource::<StepContext>();
+    let (substep, iterations) = (ctx.substep, ctx.iterations);
+    for it in 0..iterations {
+        world.resource_mut::<StepContext>().iteration = substep.iteration(it);
+        world.run_schedule(SinewIterationSchedule);
+    }
+}
+
+/// `v = (p − x)/h`, `x = p` for every muscle ([`passes::end_substep_all`]).
+pub(crate) fn end_substep(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut workers: ResMut<SolverWorkers>,
+    mut muscles: Query<(&mut MuscleState, &mut SolverWorkspace)>,
+) {
+    let mut watch = Stopwatch::new(ctx.settings.timers);
+    let workers = &mut *workers;
+    workers.pairs.with(muscles.iter_mut().map(pair), |muscles| {
+        passes::end_substep_all(&workers.pool, muscles, &ctx.substep);
+    });
+    watch.lap(&mut timings.step.apply);
+}
+
+/// Publishes every targeted muscle's predictions as its snapshot
+/// ([`passes::publish_all`]).
+pub(crate) fn publish_snapshots(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut workers: ResMut<SolverWorkers>,
+    mut muscles: Query<(&MuscleState, &mut MuscleSnapshot)>,
+) {
+    let mut watch = Stopwatch::new(ctx.settings.timers);
+    let workers = &mut *workers;
+    let snapshots = muscles
+        .iter_mut()
+        .filter(|(_, snapshot)| snapshot.targeted)
+        .map(|(state, snapshot)| (&mut snapshot.into_inner().surface, &state.muscle));
+    workers.snapshots.with(snapshots, |snapshots| {
+        passes::publish_all(&workers.pool, snapshots, &ctx.iteration);
+    });
+    watch.lap(&mut timings.step.update_targets);
+}
+
+/// Closest data and projection of every muscle ([`passes::iterate_all`]:
+/// one task per muscle, or colour sweeps across muscles), against the
+/// step's target table.
+pub(crate) fn iterate(
+    ctx: Res<StepContext>,
+    mut timings: ResMut<SinewTimings>,
+    mut workers: ResMut<SolverWorkers>,
+    mut muscles: Query<(&mut MuscleState, &mut SolverWorkspace)>,
+    bones: Query<&BoneTarget>,
+    snapshots: Query<&MuscleSnapshot>,
+) {
+    let mut watch = Stopwatch::new(ctx.settings.timers);
+    let SolverWorkers {
+        pool,
+        pairs,
+        surfaces,
+        table,
+        gone,
+        ..
+    } = &mut *workers;
+    let missing = Cell::new(false);
+    let table_surfaces = table.iter().map(|&e| {
+        surface_of(e, &bones, &snapshots).unwrap_or_else(|| {
+            missing.set(true);
+            gone
+        })
+    });
+    surfaces.with(table_surfaces, |surfaces| {
+        let timings = &mut timings.step;
+        if !missing.get() {
+            pairs.with(muscles.iter_mut().map(pair), |muscles| {
+                passes::iterate_all(
+                    pool,
+                    muscles,
+                    &*surfaces,
+                    &ctx.iteration,
+                    &mut watch,
+                    timings,
+                );
+            });
+            return;
+        }
+        // A target was despawned during the step: the muscles that read it
+        // run without contacts until it is dropped from their targets.
+        let gone: &TargetSurface = gone;
+        let lost: Vec<usize> = (0..surfaces.len())
+            .filter(|&t| std::ptr::eq(surfaces[t], gone))
+            .collect();
+        let saved: Vec<_> = muscles
+            .iter_mut()
+            .map(|(_, mut ws)| {
+                let reads_lost = ws.0.target_ids.iter().any(|t| lost.contains(t));
+                reads_lost.then(|| std::mem::take(&mut ws.0.target_ids))
+            })
+            .collect();
+        pairs.with(muscles.iter_mut().map(pair), |muscles| {
+            passes::iterate_all(
+                pool,
+                muscles,
+                &*surfaces,
+                &ctx.iteration,
+                &mut watch,
+                timings,
+            );
+        });
+        for ((_, mut ws), ids) in muscles.iter_mut().zip(saved) {
+            if let Some(ids) = ids {
+                ws.0.target_ids = ids;
+            }
+        }
+    });
+}
+
+/// Closes the step's timings.
+pub(crate) fn finish_timings(mut timings: ResMut<SinewTimings>) {
+    timings.finish_step();
+}

@@ -1,0 +1,144 @@
+//! The Bevy driver and the plain one run the same pipeline: on the arm (T5,
+//! a skeleton and sensors) and the full body (T7, 144 muscles) they agree
+//! bit for bit with every method at 1, 2 and 8 threads, and the colour
+//! sweeps across muscles are taken by both.
+
+use bevy::prelude::*;
+use sinew_bevy::prelude::*;
+use sinew_core::scene::Scene;
+use sinew_core::{ColorScope, Solver, SolverMethod, SweepSchedule};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn asset(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets")
+        .join(path)
+}
+
+const METHODS: [SolverMethod; 5] = [
+    SolverMethod::Sequential,
+    SolverMethod::Colored {
+        scope: ColorScope::PerMuscle,
+    },
+    SolverMethod::Colored {
+        scope: ColorScope::Global,
+    },
+    SolverMethod::Jacobi { omega: 1.5 },
+    SolverMethod::Hybrid {
+        min_group: 32,
+        omega: 1.5,
+    },
+];
+
+/// What one configuration did: whether the bits agreed, and the iterations
+/// each driver swept by colour.
+struct Run {
+    differs: Option<String>,
+    plain_by_color: u32,
+    bevy_by_color: u32,
+}
+
+/// Steps `base` (built once) and an app spawned from a clone of it with
+/// `method`, `threads` and `schedule` for `frames` frames.
+fn run(
+    scene: &Scene,
+    base: &Solver,
+    method: SolverMethod,
+    threads: u32,
+    schedule: SweepSchedule,
+    frames: usize,
+) -> Run {
+    let mut plain = base.clone();
+    plain.settings.method = method;
+    plain.settings.threads = threads;
+    plain.settings.schedule = schedule;
+    let mut parts = base.clone().into_parts();
+    parts.settings = plain.settings.clone();
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::transform::TransformPlugin,
+        SinewPlugin::default(),
+    ));
+    let root = app
+        .world_mut()
+        .spawn(SinewSceneRoot::Built(Arc::new(SinewScene {
+            scene: scene.clone(),
+            parts,
+        })))
+        .id();
+    let (mut plain_by_color, mut bevy_by_color) = (0, 0);
+    for _ in 0..frames {
+        plain.step();
+        app.update();
+        plain_by_color += plain.timings().sweeps_by_color;
+        bevy_by_color += app.world().resource::<SinewTimings>().step.sweeps_by_color;
+    }
+    let muscles = app
+        .world()
+        .get::<SpawnedScene>(root)
+        .unwrap()
+        .muscles
+        .clone();
+    assert_eq!(muscles.len(), plain.muscles().len());
+    let differs = plain.muscles().iter().zip(&muscles).find_map(|(m, &e)| {
+        let ecs = &app.world().get::<MuscleState>(e).unwrap().muscle.x;
+        let same = m.x.len() == ecs.len()
+            && m.x
+                .iter()
+                .zip(ecs)
+                .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
+        (!same).then(|| m.name.clone())
+    });
+    Run {
+        differs,
+        plain_by_color,
+        bevy_by_color,
+    }
+}
+
+/// Every method at 1, 2 and 8 threads (the scene's own schedule), then the
+/// clustered methods swept by colour; returns the iterations swept by colour.
+fn agree_on(scene_file: &str, frames: usize) {
+    let path = asset(scene_file);
+    let scene = Scene::load(&path).unwrap();
+    let base = scene.instantiate(path.parent().unwrap()).unwrap();
+    let mut configs: Vec<_> = METHODS
+        .iter()
+        .flat_map(|&m| [1, 2, 8].map(|t| (m, t, SweepSchedule::Auto)))
+        .collect();
+    for method in [METHODS[2], METHODS[4]] {
+        configs.extend([2, 8].map(|t| (method, t, SweepSchedule::ByColor)));
+    }
+    let mut failures = Vec::new();
+    for (method, threads, schedule) in configs {
+        let r = run(&scene, &base, method, threads, schedule, frames);
+        if let Some(muscle) = r.differs {
+            failures.push(format!(
+                "{method:?}, {threads} threads, {schedule:?}: '{muscle}' differs"
+            ));
+        }
+        assert_eq!(
+            r.plain_by_color, r.bevy_by_color,
+            "{method:?}, {threads} threads, {schedule:?}: the drivers chose different schedules"
+        );
+        if schedule == SweepSchedule::ByColor {
+            assert!(
+                r.bevy_by_color > 0,
+                "{method:?}, {threads} threads: no iteration was swept by colour"
+            );
+        }
+    }
+    assert!(failures.is_empty(), "{scene_file}: {failures:#?}");
+}
+
+#[test]
+fn bevy_and_plain_agree_bit_for_bit_on_the_arm() {
+    agree_on("scenes/t5.ron", 4);
+}
+
+#[test]
+fn bevy_and_plain_agree_bit_for_bit_on_the_full_body() {
+    agree_on("scenes/t7.ron", 2);
+}

@@ -1,0 +1,400 @@
+//! Closest data (BE5, SPEC §6): for every Sliding constraint the closest
+//! point on the target it slides on, and the current goals of Soft and Hard
+//! on their rest triangles; and the bone contacts, which put back on the
+//! surface a vertex that ended an iteration inside one of its muscle's bones.
+//! Both read the targets through [`TargetSet`] (the driver's table indexed
+//! by [`MuscleWorkspace::target_ids`]) and keep their caches in the
+//! workspace.
+
+use super::params::ClosestSchedule;
+use super::workspace::MuscleWorkspace;
+use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
+use crate::muscle::Muscle;
+use glam::{Vec3, Vec4};
+
+/// Sliding constraints per parallel chunk of the closest-data block (a few
+/// hundred ns each, so a chunk is worth a fork and join).
+pub const CLOSEST_CHUNK: usize = 256;
+
+/// Closest data (BE5): Sliding's closest point on the closest target per
+/// vertex, and the current goals of Soft and Hard on their rest triangles.
+/// With `search.split` the vertices are split over the current rayon pool
+/// in chunks of [`CLOSEST_CHUNK`] (each vertex writes only its own data, so
+/// the result is the same).
+pub fn closest_data<T: TargetSet + Sync + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    search: ClosestSchedule,
+) {
+    let nt = ws.target_ids.len();
+    if nt == 0 {
+        return;
+    }
+    let c = &mut m.constraints;
+    let input = SlidingInput {
+        p: &m.p,
+        target_ids: &ws.target_ids,
+        targets,
+        search,
+        reach: m.params.contact_reach,
+    };
+    let run = SlidingRun::of(&mut c.sliding, &mut ws.warm);
+    if search.split && run.particle.len() > CLOSEST_CHUNK {
+        run.for_each_chunk(CLOSEST_CHUNK, nt, &|run| input.closest(run));
+    } else {
+        input.closest(run);
+    }
+    // Soft and Hard goals on a rigid target only move with its bone, which
+    // is posed once per substep; a muscle target moves every iteration.
+    let moved = |t: &TargetSurface| search.first_of_substep || t.is_deforming();
+    // Disabled instances (weight 0: infinite compliance) need no goal.
+    for (i, a) in c.soft_anchor.iter().enumerate() {
+        if c.soft.compliance[i].is_finite() {
+            let t = targets.target(ws.target_ids[a.target as usize]);
+            if moved(t) {
+                c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
+                c.soft.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
+            }
+        }
+    }
+    for (i, a) in c.hard_anchor.iter().enumerate() {
+        if c.hard.compliance[i].is_finite() {
+            let t = targets.target(ws.target_ids[a.target as usize]);
+            if moved(t) {
+                c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+                c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
+            }
+        }
+    }
+}
+
+/// A run of Sliding constraints' closest data: the batch's slices for the
+/// run, and its warm cells (`targets` per constraint).
+struct SlidingRun<'a> {
+    particle: &'a [u32],
+    connected: &'a [bool],
+    rest_gap: &'a [f32],
+    point: &'a mut [Vec3],
+    target_w: &'a mut [f32],
+    normal: &'a mut [Vec3],
+    target: &'a mut [u32],
+    triangle: &'a mut [u32],
+    barycentric: &'a mut [Vec3],
+    plane: &'a mut [Vec3],
+    warm: &'a mut [u32],
+}
+
+impl<'a> SlidingRun<'a> {
+    /// The whole batch, with the muscle's warm cells.
+    fn of(s: &'a mut crate::constraints::SlidingBatch, warm: &'a mut [u32]) -> Self {
+        Self {
+            particle: &s.particle,
+            connected: &s.connected,
+            rest_gap: &s.rest_gap,
+            point: &mut s.point,
+            target_w: &mut s.target_w,
+            normal: &mut s.normal,
+            target: &mut s.target,
+            triangle: &mut s.triangle,
+            barycentric: &mut s.barycentric,
+            plane: &mut s.plane,
+            warm,
+        }
+    }
+
+    /// Runs `f` on runs of at most `k` constraints, in parallel on the
+    /// current rayon pool (halving at a multiple of `k`, so nothing is
+    /// allocated); `targets` warm cells per constraint.
+    fn for_each_chunk(self, k: usize, targets: usize, f: &(impl Fn(SlidingRun) + Sync)) {
+        let n = self.particle.len();
+        if n <= k {
+            return f(self);
+        }
+        let (head, tail) = self.split_at(n.div_ceil(k) / 2 * k, targets);
+        rayon::join(
+            || head.for_each_chunk(k, targets, f),
+            || tail.for_each_chunk(k, targets, f),
+        );
+    }
+
+    /// The first `at` constraints and the rest.
+    fn split_at(self, at: usize, targets: usize) -> (Self, Self) {
+        let (particle, particle_b) = self.particle.split_at(at);
+        let (connected, connected_b) = self.connected.split_at(at);
+        let (rest_gap, rest_gap_b) = self.rest_gap.split_at(at * targets);
+        let (point, point_b) = self.point.split_at_mut(at);
+        let (target_w, target_w_b) = self.target_w.split_at_mut(at);
+        let (normal, normal_b) = self.normal.split_at_mut(at);
+        let (target, target_b) = self.target.split_at_mut(at);
+        let (triangle, triangle_b) = self.triangle.split_at_mut(at);
+        let (barycentric, barycentric_b) = self.barycentric.split_at_mut(at);
+        let (plane, plane_b) = self.plane.split_at_mut(at);
+        let (warm, warm_b) = self.warm.split_at_mut(at * targets);
+        (
+            Self {
+                particle,
+                connected,
+                rest_gap,
+                point,
+                target_w,
+                normal,
+                target,
+                triangle,
+                barycentric,
+                plane,
+                warm,
+            },
+            Self {
+                particle: particle_b,
+                connected: connected_b,
+                rest_gap: rest_gap_b,
+                point: point_b,
+                target_w: target_w_b,
+                normal: normal_b,
+                target: target_b,
+                triangle: triangle_b,
+                barycentric: barycentric_b,
+                plane: plane_b,
+                warm: warm_b,
+            },
+        )
+    }
+}
+
+/// How strongly a target claims a vertex's Sliding constraint. A bone the
+/// vertex is inside of claims it first (the deepest first), so Sliding
+/// pushes it out even when a muscle is nearer; then the target the vertex
+/// has come nearest to *relative to its rest gap* (`distance − rest gap`):
+/// at rest every target's claim is 0 and the vertex keeps the one it
+/// rests on. Ranking by distance alone switched a vertex between targets
+/// with different rest gaps as it sagged, a jump in its constraint every
+/// `choose_interval` frames (the tip of T5's medial triceps held a 4-frame
+/// limit cycle).
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+enum Claim {
+    /// Inside a bone: minus the depth.
+    InsideBone(f32),
+    /// Outside: distance − rest gap.
+    Gap(f32),
+}
+
+impl Claim {
+    /// Whether this claim takes the vertex from `held`: a deeper bone, any
+    /// bone over a gap, or a gap smaller by more than a tenth of the
+    /// contact band (so that near-ties keep the target the vertex has).
+    fn beats(&self, held: &Claim, reach: f32) -> bool {
+        match (*self, *held) {
+            (Claim::Gap(a), Claim::Gap(b)) => a < b - 0.1 * reach,
+            (a, b) => a < b,
+        }
+    }
+}
+
+/// What the Sliding part of closest data reads.
+struct SlidingInput<'a, T: ?Sized> {
+    p: &'a [Vec3],
+    target_ids: &'a [usize],
+    targets: &'a T,
+    search: ClosestSchedule,
+    /// The muscle's contact reach: a target farther than this at rest is
+    /// never chosen.
+    reach: f32,
+}
+
+impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
+    /// Closest points for a run of Sliding constraints.
+    fn closest(&self, run: SlidingRun) {
+        let SlidingRun {
+            particle,
+            connected,
+            rest_gap,
+            point,
+            target_w,
+            normal,
+            target,
+            triangle,
+            barycentric,
+            plane,
+            warm,
+        } = run;
+        let (nt, search) = (self.target_ids.len(), self.search);
+        for i in 0..particle.len() {
+            if !connected[i] {
+                continue;
+            }
+            let v = particle[i] as usize;
+            let q = self.p[v];
+            let first = target[i] as usize;
+            let choose = search.chooses(v) || first >= nt;
+            // Later iterations project the vertex onto the feature (face
+            // plane, edge or corner) of the triangle the walk found: the
+            // closest point while the vertex stays in that feature's region.
+            if !choose && !search.walk && search.feature_contacts {
+                let surface = self.targets.target(self.target_ids[first]);
+                point[i] = surface.on_feature(q, triangle[i], barycentric[i], plane[i]);
+                continue;
+            }
+            // Last iteration's target first. The vertex re-chooses in the
+            // first iteration of one frame in `choose_interval` (staggered
+            // over vertices); in between it keeps its target but, in the
+            // first iteration of a frame, still checks every bone whose box
+            // it is in (it may have entered one).
+            let bones_only = !choose;
+            let order = (first < nt)
+                .then_some(first)
+                .into_iter()
+                .chain((0..nt).filter(move |&s| (choose || search.first_of_frame) && s != first));
+            let full = search.wants(v);
+            let mut best: Option<(Claim, ClosestHit, u32)> = None;
+            for slot in order {
+                let gap = rest_gap[i * nt + slot];
+                let surface = self.targets.target(self.target_ids[slot]);
+                // A target out of the vertex's contact band at rest (or
+                // across a seam, see `link_muscle`) is never chosen.
+                if gap > self.reach || bones_only && slot != first && surface.is_deforming() {
+                    continue;
+                }
+                // Only a hit nearer than `bound` can claim the vertex.
+                let bound = match &best {
+                    None => f32::MAX,
+                    Some((claim, _, _)) => {
+                        let lower = surface.lower_bound(q);
+                        // Inside a bone's box the vertex may be inside the
+                        // bone, which claims it whatever the others do.
+                        if lower == 0.0 && !surface.is_deforming() {
+                            f32::MAX
+                        } else {
+                            match *claim {
+                                Claim::InsideBone(_) => continue,
+                                Claim::Gap(g) if lower >= g + gap => continue,
+                                Claim::Gap(g) => g + gap,
+                            }
+                        }
+                    }
+                };
+                let cell = &mut warm[i * nt + slot];
+                let last = (*cell != NO_TRIANGLE).then_some(*cell);
+                let local = last.filter(|_| !full).and_then(|t| {
+                    if search.walk {
+                        surface.walk(q, t)
+                    } else {
+                        surface.on_triangle(q, t)
+                    }
+                });
+                let Some(hit) = local.or_else(|| surface.closest_within(q, last, bound)) else {
+                    continue;
+                };
+                *cell = hit.triangle;
+                let claim = if hit.signed_distance < 0.0 && !surface.is_deforming() {
+                    Claim::InsideBone(-hit.distance)
+                } else {
+                    Claim::Gap(hit.distance - gap)
+                };
+                if best
+                    .as_ref()
+                    .is_none_or(|(b, _, _)| claim.beats(b, self.reach))
+                {
+                    best = Some((claim, hit, slot as u32));
+                }
+            }
+            match best {
+                Some((_, hit, slot)) => {
+                    let surface = self.targets.target(self.target_ids[slot as usize]);
+                    point[i] = hit.point;
+                    target_w[i] = surface.point_inverse_mass(hit.triangle, hit.barycentric);
+                    normal[i] = hit.normal;
+                    triangle[i] = hit.triangle;
+                    barycentric[i] = hit.barycentric;
+                    // Only the feature projection reads the plane; it runs
+                    // after a first iteration that comes here.
+                    if search.feature_contacts {
+                        plane[i] = surface.face_normal(hit.triangle);
+                    }
+                    target[i] = slot;
+                }
+                None => target[i] = u32::MAX,
+            }
+        }
+    }
+}
+
+/// In each iteration, after the projections (before a trailing Volume), puts
+/// every surface vertex that ended up inside one of its muscle's bone targets
+/// (and was outside it at rest) back on the bone's surface: bones do not give
+/// way, whatever the soft constraints solved after Sliding did. Each bone is
+/// checked only for vertices inside its bounding box, from the last closest
+/// triangle (a walk), and not at all while the vertex stays within its last
+/// known clearance of where it had it (the workspace's clearance cells). Bones do not
+/// move within a substep, so after its first iteration (`first_of_substep`) a
+/// vertex that stayed within the smallest of its cells' remaining clearances
+/// (the workspace's bone margin) skips every cell at once: the cells would all
+/// have been skipped.
+pub fn bone_contacts<T: TargetSet + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    first_of_substep: bool,
+) {
+    let nt = ws.target_ids.len();
+    let c = &m.constraints.sliding;
+    if nt == 0 || !c.rigid.iter().any(|&r| r) {
+        return;
+    }
+    for i in 0..c.len() {
+        let v = c.particle[i] as usize;
+        if m.w[v] == 0.0 {
+            continue;
+        }
+        let anchor = ws.bone_margin[i];
+        if !first_of_substep && m.p[v].distance_squared(anchor.truncate()) < anchor.w * anchor.w {
+            continue;
+        }
+        // The smallest remaining clearance over this vertex's bones.
+        let mut margin = f32::INFINITY;
+        for slot in (0..nt).filter(|&s| c.rigid[s]) {
+            let cell = i * nt + slot;
+            if !c.rest_outside[cell] {
+                continue;
+            }
+            let target = targets.target(ws.target_ids[slot]);
+            let local = target.to_local(m.p[v]);
+            let known = ws.clearance[cell];
+            let moved2 = local.distance_squared(known.truncate());
+            if moved2 < known.w * known.w {
+                margin = margin.min(known.w - moved2.sqrt());
+                continue;
+            }
+            let lower = target.lower_bound_local(local);
+            if lower > 0.0 {
+                ws.clearance[cell] = local.extend(lower);
+                margin = margin.min(lower);
+                continue;
+            }
+            let last = &mut ws.warm[cell];
+            let q = m.p[v];
+            let hit = match *last {
+                NO_TRIANGLE => target.closest_within(q, None, f32::INFINITY),
+                t => target.walk(q, t),
+            };
+            margin = 0.0;
+            if let Some(hit) = hit {
+                *last = hit.triangle;
+                if hit.signed_distance < 0.0 {
+                    m.p[v] -= hit.normal * hit.signed_distance;
+                    ws.clearance[cell] = Vec4::ZERO;
+                } else {
+                    ws.clearance[cell] = local.extend(hit.distance);
+                }
+            }
+        }
+        // A little less than the exact margin, so that rounding never skips
+        // a cell the per-cell test would have checked.
+        let margin = if margin.is_finite() {
+            (margin * (1.0 - 1e-3) - 1e-6).max(0.0)
+        } else {
+            f32::INFINITY
+        };
+        ws.bone_margin[i] = m.p[v].extend(margin);
+    }
+}

@@ -1,0 +1,266 @@
+//! What each level of the frame loop needs from the settings, computed once
+//! and read by name: [`FrameParams`] per step, [`SubstepParams`] per
+//! substep, [`IterationParams`] per iteration. Every driver (the plain
+//! [`super::Solver`], the Bevy systems) builds them the same way, from
+//! validated settings, so a setting means the same in all of them.
+
+use super::settings::{SolverMethod, SolverSettings, SweepSchedule};
+use crate::constraints::ConstraintKind;
+use crate::muscle::Muscle;
+use glam::Vec3;
+
+/// The projection order of a step, held by value (at most one entry per
+/// constraint type).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ProjectionOrder {
+    kinds: [ConstraintKind; 9],
+    len: u8,
+}
+
+impl ProjectionOrder {
+    /// The first nine entries of `order`.
+    pub fn new(order: &[ConstraintKind]) -> Self {
+        let mut kinds = ConstraintKind::CANONICAL_ORDER;
+        let len = order.len().min(kinds.len());
+        kinds[..len].copy_from_slice(&order[..len]);
+        Self {
+            kinds,
+            len: len as u8,
+        }
+    }
+
+    /// The order as a slice.
+    pub fn as_slice(&self) -> &[ConstraintKind] {
+        &self.kinds[..self.len as usize]
+    }
+}
+
+/// Which vertices run the full closest-point search, choose their target or
+/// walk in an iteration (see [`crate::closest`] and the settings of the same
+/// names).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClosestSchedule {
+    /// Frame counter (staggers the vertices).
+    pub frame: u64,
+    /// Frames between two full searches of one vertex.
+    pub interval: u32,
+    /// Frames between two choices of a vertex's target (a vertex with a
+    /// full search also chooses).
+    pub choose_interval: u32,
+    /// Without `walk`, project onto the feature the walk found.
+    pub feature_contacts: bool,
+    /// The first iteration of a frame: full searches run, and vertices
+    /// re-choose their target (one in `choose_interval`).
+    pub first_of_frame: bool,
+    /// Walk from the last triangle (else re-project onto it).
+    pub walk: bool,
+    /// The first iteration of a substep: bones have just been posed.
+    pub first_of_substep: bool,
+    /// Split the vertices over the current rayon pool (same result).
+    pub split: bool,
+}
+
+impl ClosestSchedule {
+    /// Every vertex, every target: the full search.
+    #[cfg(test)]
+    pub const ALWAYS: Self = Self {
+        frame: 0,
+        interval: 1,
+        choose_interval: 1,
+        feature_contacts: false,
+        first_of_frame: true,
+        walk: true,
+        first_of_substep: true,
+        split: false,
+    };
+
+    /// Whether vertex `vertex` runs the full search now.
+    pub(super) fn wants(&self, vertex: usize) -> bool {
+        self.first_of_frame && (vertex as u64 + self.frame).is_multiple_of(self.interval as u64)
+    }
+
+    /// Whether vertex `vertex` re-chooses its target now.
+    pub(super) fn chooses(&self, vertex: usize) -> bool {
+        self.first_of_frame
+            && (vertex as u64 + self.frame).is_multiple_of(self.choose_interval as u64)
+            || self.wants(vertex)
+    }
+}
+
+/// How a step spreads its work over the driver's threads. The same bits
+/// whatever it says; it only decides where a fork and join pays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Parallelism {
+    /// Muscle passes (closest data, projection) run muscle by muscle on the
+    /// pool, and a large muscle splits its own work into chunks.
+    pub muscles: bool,
+    /// Per-particle passes (integration, goals, publishing) run on the pool.
+    pub particles: bool,
+}
+
+impl Parallelism {
+    /// The split for a scene of `constraints` constraints and `particles`
+    /// particles, given whether the driver has worker threads:
+    /// [`SolverSettings::parallel_threshold`] keeps small scenes on the
+    /// calling thread.
+    pub fn decide(
+        settings: &SolverSettings,
+        threads: bool,
+        constraints: usize,
+        particles: usize,
+    ) -> Self {
+        Self {
+            muscles: threads && constraints >= settings.parallel_threshold,
+            particles: threads && particles >= settings.parallel_threshold,
+        }
+    }
+}
+
+/// A step's parameters, from validated settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameParams {
+    /// Frames stepped before this one.
+    pub frame: u64,
+    /// Simulated time the step covers, `dt × time_scale`. Units: s.
+    pub dt: f32,
+    /// Substeps.
+    pub substeps: u32,
+    /// The global iteration count `N`; a muscle runs its own count.
+    pub iterations: u32,
+    /// Gravity in scene units, `g / space_scale`. Units: scene units/s².
+    pub gravity: Vec3,
+    /// Damping per substep is `(1 − d)^damping_exp` (`1 / substeps`).
+    pub damping_exp: f32,
+    /// Projection method.
+    pub method: SolverMethod,
+    /// Projection order.
+    pub order: ProjectionOrder,
+    /// Frames between full closest-point searches.
+    pub full_search_interval: u32,
+    /// Frames between target choices.
+    pub choose_interval: u32,
+    /// Project onto walk features (without walking every iteration).
+    pub feature_contacts: bool,
+    /// Walk in every iteration.
+    pub walk_every_iteration: bool,
+    /// How coloured methods use the threads.
+    pub schedule: SweepSchedule,
+    /// Worker threads (`0`: every core, `1`: the calling thread only).
+    pub threads: u32,
+    /// Where the work runs.
+    pub parallelism: Parallelism,
+}
+
+impl FrameParams {
+    /// The parameters of frame `frame` (0-based) with `settings`, which must
+    /// have passed [`SolverSettings::validate`].
+    pub fn new(settings: &SolverSettings, frame: u64, parallelism: Parallelism) -> Self {
+        let substeps = settings.substeps.max(1);
+        Self {
+            frame,
+            dt: settings.dt * settings.time_scale,
+            substeps,
+            iterations: settings.iterations.max(1),
+            gravity: settings.gravity / settings.space_scale,
+            damping_exp: 1.0 / substeps as f32,
+            method: settings.method,
+            order: ProjectionOrder::new(&settings.projection_order),
+            full_search_interval: settings.full_search_interval.max(1),
+            choose_interval: settings.choose_interval.max(1),
+            feature_contacts: settings.feature_contacts,
+            walk_every_iteration: settings.walk_every_iteration,
+            schedule: settings.schedule,
+            threads: settings.threads,
+            parallelism,
+        }
+    }
+
+    /// Iterations the loop runs: the global count, or a muscle's own if any
+    /// is larger.
+    pub fn iterations_for<'a>(&self, muscles: impl IntoIterator<Item = &'a Muscle>) -> u32 {
+        muscles
+            .into_iter()
+            .map(|m| m.params.iterations.unwrap_or(self.iterations))
+            .fold(self.iterations, u32::max)
+    }
+
+    /// Substep `index` (0-based).
+    pub fn substep(&self, index: u32) -> SubstepParams {
+        let h = self.dt / self.substeps as f32;
+        SubstepParams {
+            frame: *self,
+            index,
+            alpha: (index + 1) as f32 / self.substeps as f32,
+            h,
+            inv_h2: 1.0 / (h * h),
+        }
+    }
+}
+
+/// A substep's parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SubstepParams {
+    /// The step's.
+    pub frame: FrameParams,
+    /// Substep index (0-based).
+    pub index: u32,
+    /// Fraction of the frame reached at the substep's end.
+    pub alpha: f32,
+    /// Substep length. Units: s.
+    pub h: f32,
+    /// `1 / h²`.
+    pub inv_h2: f32,
+}
+
+impl SubstepParams {
+    /// Iteration `index` (0-based) of this substep.
+    pub fn iteration(&self, index: u32) -> IterationParams {
+        IterationParams {
+            substep: *self,
+            index,
+        }
+    }
+}
+
+/// An iteration's parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterationParams {
+    /// The substep's.
+    pub substep: SubstepParams,
+    /// Iteration index within the substep (0-based).
+    pub index: u32,
+}
+
+impl IterationParams {
+    /// The first iteration of the frame: full closest-point searches, target
+    /// choices, snapshot normals and refits.
+    pub fn first_of_frame(&self) -> bool {
+        self.index == 0 && self.substep.index == 0
+    }
+
+    /// The first iteration of the substep: bones were just posed, plans are
+    /// checked against their muscles.
+    pub fn first_of_substep(&self) -> bool {
+        self.index == 0
+    }
+
+    /// Whether `m` runs this iteration (`index <` its own count).
+    pub fn runs(&self, m: &Muscle) -> bool {
+        self.index < m.params.iterations.unwrap_or(self.substep.frame.iterations)
+    }
+
+    /// Closest data's schedule for this iteration.
+    pub fn closest(&self) -> ClosestSchedule {
+        let f = &self.substep.frame;
+        ClosestSchedule {
+            frame: f.frame,
+            interval: f.full_search_interval,
+            choose_interval: f.choose_interval,
+            feature_contacts: f.feature_contacts,
+            first_of_frame: self.first_of_frame(),
+            walk: self.first_of_frame() || f.walk_every_iteration,
+            first_of_substep: self.first_of_substep(),
+            split: f.parallelism.muscles,
+        }
+    }
+}

@@ -1,0 +1,139 @@
+//! The frame loop's passes over every muscle of a driver, built from the
+//! per-muscle phases of [`super::pipeline`]: where the plain
+//! [`super::Solver`] and the Bevy systems hand over their muscles (as
+//! [`MusclePair`]s) and their targets, and get the same bits back for any
+//! thread count.
+//!
+//! ```text
+//! update_activations   activation → rest lengths, volume ratio
+//! begin_substep_all    predict, pins, λ = 0 (after the driver's attachment goals)
+//! publish_all          the snapshots other muscles read
+//! iterate_all          closest data and projection, by muscle or by colour
+//! end_substep_all      v = (p − x)/h, x = p
+//! ```
+
+use super::coloring::PlanKind;
+use super::parallel::{MusclePair, WorkerPool, for_each_muscle, sweeps_by_color_pay};
+use super::params::{IterationParams, SubstepParams};
+use super::pipeline;
+use super::sweep;
+use super::timings::{StepTimings, Stopwatch, TaskSplit};
+use crate::closest::{TargetSet, TargetSurface};
+use crate::muscle::Muscle;
+
+/// Muscles above which activations are updated in parallel (their rest
+/// lengths: a few µs per muscle).
+const PARALLEL_MUSCLES: usize = 16;
+
+/// Rest lengths and volume ratio of every muscle from its activation, on
+/// the pool when there are many muscles (`always`: whatever their number);
+/// each warning (an activation out of range) goes to `warn`.
+pub fn update_activations(
+    pool: &WorkerPool,
+    muscles: &mut [MusclePair],
+    always: bool,
+    warn: impl Fn(String) + Sync + Send,
+) {
+    let pool = pool.when(always || muscles.len() > PARALLEL_MUSCLES);
+    for_each_muscle(pool, muscles, |m, _| {
+        if let Some(w) = m.update_activation() {
+            warn(w);
+        }
+    });
+}
+
+/// [`pipeline::begin_substep`] for every muscle (on the pool when the
+/// step's particle passes are parallel).
+pub fn begin_substep_all(pool: &WorkerPool, muscles: &mut [MusclePair], sub: &SubstepParams) {
+    let pool = pool.when(sub.frame.parallelism.particles);
+    for_each_muscle(pool, muscles, |m, ws| pipeline::begin_substep(m, ws, sub));
+}
+
+/// [`pipeline::end_substep`] for every muscle.
+pub fn end_substep_all(pool: &WorkerPool, muscles: &mut [MusclePair], sub: &SubstepParams) {
+    let pool = pool.when(sub.frame.parallelism.particles);
+    for_each_muscle(pool, muscles, |m, ws| pipeline::end_substep(m, ws, sub));
+}
+
+/// [`pipeline::publish`] for every (snapshot, muscle) pair: the muscles
+/// that other muscles target, in parallel when there are several.
+pub fn publish_all(
+    pool: &WorkerPool,
+    snapshots: &mut [(&mut TargetSurface, &Muscle)],
+    it: &IterationParams,
+) {
+    use rayon::prelude::*;
+    match pool.when(it.substep.frame.parallelism.particles) {
+        Some(pool) if snapshots.len() > 1 => pool.install(|| {
+            snapshots
+                .par_iter_mut()
+                .for_each(|(t, m)| pipeline::publish(t, m, it));
+        }),
+        _ => snapshots
+            .iter_mut()
+            .for_each(|(t, m)| pipeline::publish(t, m, it)),
+    }
+}
+
+/// Closest data and projection of every muscle for iteration `it`, its
+/// time lapped on `clock` into `timings`' closest-data and project blocks.
+///
+/// One task per muscle ([`pipeline::iterate`]; a muscle reads the others
+/// only through the published snapshots, so the split gives the same
+/// bits, and one task keeps the muscle in cache), or — for a clustered or
+/// Hybrid plan whose largest muscle would leave threads idle, or when
+/// [`super::SweepSchedule::ByColor`] asks — the same phases interleaved:
+/// closest data of every muscle, colour `c` of every muscle's plan for each
+/// `c`, then every muscle's [`pipeline::finish`].
+pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
+    pool: &WorkerPool,
+    muscles: &mut [MusclePair],
+    targets: &T,
+    it: &IterationParams,
+    clock: &mut Stopwatch,
+    timings: &mut StepTimings,
+) {
+    let frame = &it.substep.frame;
+    let pool = pool.when(frame.parallelism.muscles);
+    let by_color = pool.is_some()
+        && pipeline::plan_kind(frame.method)
+            .is_some_and(|(kind, _)| kind != PlanKind::PerConstraint)
+        && sweeps_by_color_pay(frame, muscles);
+    let Some(pool) = pool.filter(|_| by_color) else {
+        let split = TaskSplit::new(clock.is_running());
+        for_each_muscle(pool, muscles, |m, ws| {
+            pipeline::iterate(m, ws, targets, it, &split);
+        });
+        let [closest, project] = split.shares();
+        let slots = [&mut timings.closest_data, &mut timings.project];
+        clock.lap_split(slots, [closest, project], split.reads());
+        return;
+    };
+    timings.sweeps_by_color += 1;
+    for_each_muscle(Some(pool), muscles, |m, ws| {
+        pipeline::closest(m, ws, targets, it);
+    });
+    clock.lap(&mut timings.closest_data);
+    let mut colors = 0;
+    for (m, ws) in muscles.iter_mut() {
+        if it.runs(m) {
+            colors = colors.max(pipeline::plan_for(m, ws, it).color_count());
+        }
+    }
+    pool.install(|| {
+        use rayon::prelude::*;
+        for color in 0..colors {
+            muscles.par_iter_mut().for_each(|(m, ws)| {
+                if let Some(plan) = pipeline::sweep_plan(ws).filter(|_| it.runs(m)) {
+                    sweep::sweep_color(m, plan, color, it.substep.inv_h2);
+                }
+            });
+        }
+    });
+    for_each_muscle(Some(pool), muscles, |m, ws| {
+        if it.runs(m) {
+            pipeline::finish(m, ws, targets, it);
+        }
+    });
+    clock.lap(&mut timings.project);
+}

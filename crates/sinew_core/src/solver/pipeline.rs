@@ -1,0 +1,277 @@
+//! The frame loop's per-muscle phases, the only copy of the loop's logic.
+//! [`super::passes`] runs them over every muscle for both drivers (the
+//! plain [`super::Solver`] and the Bevy systems). A muscle's step is
+//!
+//! ```text
+//! read inputs        (driver) bone poses, activation; link(m, ws, targets) when targets change
+//! per substep        update_attachment_goals(m, pose)  the bones' poses at the substep
+//!                    begin_substep(m, ws, s)           integrate, pins, λ = 0
+//!   per iteration    publish(snapshot, m, it)          for the muscles others target
+//!                    iterate(m, ws, targets, it)       closest data, then project:
+//!                                                        sweep(m, ws, it)  the method's pass
+//!                                                        finish(m, ws, targets, it)
+//!                                                          Hybrid tail, Volume, bone contacts
+//!                    (by colour: closest(..) of every muscle, then colour c of every
+//!                     muscle's plan_for(..) for each c, then finish(..) of every muscle)
+//!                    end_substep(m, ws, s)             v = (p − x)/h, x = p
+//! ```
+//!
+//! A muscle reads other muscles only through snapshots published at the
+//! start of the iteration, so the order and thread of muscles do not change
+//! the result. Targets are looked up through [`TargetSet`], the driver's
+//! table, which [`MuscleWorkspace::target_ids`] index in the muscle's own
+//! target order.
+
+use super::closest_data::bone_contacts;
+use super::coloring::{ColorPlan, PlanKind};
+use super::jacobi::{self, JacobiState};
+use super::momentum;
+use super::params::{IterationParams, SubstepParams};
+use super::settings::{ColorScope, SolverMethod};
+use super::sweep::{self, SweepPlan};
+use super::timings::TaskSplit;
+use super::workspace::MuscleWorkspace;
+use crate::closest::{TargetSet, TargetSurface};
+use crate::constraints::{ConstraintBatch, ConstraintKind};
+use crate::muscle::Muscle;
+use glam::{Affine3A, Vec3};
+
+pub use super::closest_data::closest_data;
+pub use super::link::link;
+
+/// Starts a substep of `m` (after [`update_attachment_goals`]): predicted
+/// positions (gravity, damping `(1 − d)^damping_exp`), pinned particles on
+/// their goals, multipliers zeroed, and a free muscle's momentum recorded.
+pub fn begin_substep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &SubstepParams) {
+    integrate(m, p.frame.gravity, p.h, p.frame.damping_exp);
+    m.place_pinned();
+    m.constraints.clear_lambdas();
+    ws.momentum = momentum::is_free(m).then(|| momentum::measure(m));
+}
+
+/// Ends a substep of `m`: velocities from the corrections, positions
+/// accepted, and the momentum [`begin_substep`] recorded restored.
+pub fn end_substep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &SubstepParams) {
+    let inv_h = 1.0 / p.h;
+    for i in 0..m.x.len() {
+        m.v[i] = (m.p[i] - m.x[i]) * inv_h;
+        m.x[i] = m.p[i];
+    }
+    if let Some(reference) = ws.momentum {
+        momentum::restore(m, reference, p.h);
+    }
+}
+
+/// Publishes `m`'s predictions into `target`, the snapshot other muscles
+/// read it through; the first iteration of a frame also updates its
+/// normals, its particles' inverse masses and (when its slack asks) its BVH.
+pub fn publish(target: &mut TargetSurface, m: &Muscle, p: &IterationParams) {
+    publish_at(target, m, p.first_of_frame());
+}
+
+/// [`publish`] with the first-of-frame work chosen by hand (`true` before
+/// linking against the snapshot).
+pub fn publish_at(target: &mut TargetSurface, m: &Muscle, first_of_frame: bool) {
+    target.publish(&m.p[..m.surface_count]);
+    if first_of_frame {
+        target.update_normals();
+        target.refit(false);
+        target.set_inverse_masses(&m.w[..m.surface_count]);
+    }
+}
+
+/// One iteration of `m`, in one task: closest data, then the projection
+/// ([`sweep`] and [`finish`]). A muscle whose own iteration count is
+/// reached sits it out. `timer` splits the task's time between the two.
+pub fn iterate<T: TargetSet + Sync + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    p: &IterationParams,
+    timer: &TaskSplit,
+) {
+    if !p.runs(m) {
+        return;
+    }
+    let start = timer.start();
+    closest_data(m, ws, targets, p.closest());
+    let middle = timer.lap(start, 0);
+    sweep(m, ws, p);
+    finish(m, ws, targets, p);
+    timer.lap(middle, 1);
+}
+
+/// Closest data of `m` for iteration `p` (BE5), when `m` runs it.
+pub fn closest<T: TargetSet + Sync + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    p: &IterationParams,
+) {
+    if p.runs(m) {
+        closest_data(m, ws, targets, p.closest());
+    }
+}
+
+/// The method's pass over every constraint of `m` but those [`finish`]
+/// runs: Gauss–Seidel in the projection order, the colour plan's sweeps,
+/// or the Jacobi pass.
+pub fn sweep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &IterationParams) {
+    let f = &p.substep.frame;
+    let (order, inv_h2, split) = (f.order.as_slice(), p.substep.inv_h2, f.parallelism.muscles);
+    match f.method {
+        SolverMethod::Sequential => gauss_seidel(m, split_volume(order).0, inv_h2),
+        SolverMethod::Colored { .. } | SolverMethod::Hybrid { .. } => {
+            let plan = plan_for(m, ws, p);
+            sweep::sweep_muscle(m, plan.sweep(), inv_h2, split);
+        }
+        SolverMethod::Jacobi { omega } => {
+            let state = jacobi_for(m, ws, order);
+            jacobi::project_jacobi(m, state, inv_h2, omega, split);
+        }
+    }
+}
+
+/// The colour plan `m` runs this iteration, built when the workspace has
+/// none of the method's kind for `m`'s current topology. The first
+/// iteration of a substep also compares the plan with the muscle's index
+/// arrays ([`ColorPlan::fits`]): a host may have retied a constraint through
+/// the public batches without [`Muscle::touch_topology`].
+pub fn plan_for<'w>(
+    m: &Muscle,
+    ws: &'w mut MuscleWorkspace,
+    p: &IterationParams,
+) -> &'w mut ColorPlan {
+    let f = &p.substep.frame;
+    let (kind, _) = plan_kind(f.method).expect("a coloured method");
+    let topology = m.topology();
+    let fresh = matches!(&ws.plan, Some((t, plan))
+        if *t == topology && plan.kind() == kind && (!p.first_of_substep() || plan.fits(m)));
+    if !fresh {
+        ws.plan = Some((topology, ColorPlan::build(m, f.order.as_slice(), kind)));
+    }
+    &mut ws.plan.as_mut().expect("just built").1
+}
+
+/// The sweep plan of `m`'s workspace (after [`plan_for`]), for a driver
+/// that runs colour sweeps across muscles.
+pub fn sweep_plan(ws: &MuscleWorkspace) -> Option<&SweepPlan> {
+    ws.plan.as_ref().map(|(_, plan)| plan.sweep())
+}
+
+/// The Jacobi incidence of `m`, built when missing or stale.
+fn jacobi_for<'w>(
+    m: &Muscle,
+    ws: &'w mut MuscleWorkspace,
+    order: &[ConstraintKind],
+) -> &'w mut JacobiState {
+    let topology = m.topology();
+    if !matches!(&ws.jacobi, Some((t, _)) if *t == topology) {
+        ws.jacobi = Some((topology, JacobiState::new(m, order)));
+    }
+    &mut ws.jacobi.as_mut().expect("just built").1
+}
+
+/// The end of an iteration's projection: Hybrid's Jacobi tail, a Volume
+/// that a coloured or Jacobi pass left out from the middle of the order,
+/// the bone contacts, then a trailing Volume.
+pub fn finish<T: TargetSet + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    p: &IterationParams,
+) {
+    let f = &p.substep.frame;
+    let (order, inv_h2, split) = (f.order.as_slice(), p.substep.inv_h2, f.parallelism.muscles);
+    let (_, trailing) = split_volume(order);
+    if f.method != SolverMethod::Sequential {
+        if let (Some((_, omega)), Some((_, plan))) = (plan_kind(f.method), &mut ws.plan) {
+            plan.project_tail(m, inv_h2, omega, split);
+        }
+        if !trailing && order.contains(&ConstraintKind::Volume) {
+            project_volume(m, inv_h2, split);
+        }
+    }
+    bone_contacts(m, ws, targets, p.first_of_substep());
+    if trailing {
+        project_volume(m, inv_h2, split);
+    }
+}
+
+/// The colour plan a method runs on and its Jacobi ω (1 without a tail);
+/// `None` for the uncoloured methods.
+pub fn plan_kind(method: SolverMethod) -> Option<(PlanKind, f32)> {
+    match method {
+        SolverMethod::Colored {
+            scope: ColorScope::PerMuscle,
+        } => Some((PlanKind::PerConstraint, 1.0)),
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        } => Some((PlanKind::Clustered, 1.0)),
+        SolverMethod::Hybrid { min_group, omega } => Some((PlanKind::Hybrid { min_group }, omega)),
+        SolverMethod::Sequential | SolverMethod::Jacobi { .. } => None,
+    }
+}
+
+/// Moves every attachment goal of `m` to its bone's pose at the substep's
+/// end (`pose(bone)`; `None`: the world).
+pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> Affine3A) {
+    let mut k = 0;
+    for (i, a) in m.attachments.iter().enumerate() {
+        let t = pose(a.bone);
+        m.constraints.attach.goal[i] = t.transform_point3(a.vertex_local);
+        if a.internal_particle.is_some() {
+            m.constraints.branch_attach.goal[k] = t.transform_point3(a.internal_local);
+            k += 1;
+        }
+    }
+}
+
+/// Explicit Euler prediction with gravity and per-substep damping.
+fn integrate(m: &mut Muscle, gravity: Vec3, h: f32, damping_exp: f32) {
+    let keep = (1.0 - m.params.damping).powf(damping_exp);
+    for i in 0..m.x.len() {
+        let v = (m.v[i] + h * gravity) * keep;
+        m.v[i] = v;
+        m.p[i] = m.x[i] + h * v;
+    }
+}
+
+/// `order` without a trailing Volume, and whether it had one.
+fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
+    match order.split_last() {
+        Some((ConstraintKind::Volume, rest)) => (rest, true),
+        _ => (order, false),
+    }
+}
+
+/// Projects the Volume constraint of `m`, if it has one (a large mesh's
+/// evaluation as a parallel reduction when `split`, same result).
+fn project_volume(m: &mut Muscle, inv_h2: f32, split: bool) {
+    if let Some(v) = &mut m.constraints.volume {
+        v.solve_with(&mut m.p, &m.w, inv_h2, split);
+    }
+}
+
+/// Projects every constraint of `m` once, type by type in `order` (BE6,
+/// Gauss–Seidel).
+pub fn gauss_seidel(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
+    let (p, w, c) = (&mut m.p, &m.w, &mut m.constraints);
+    for &kind in order {
+        match kind {
+            ConstraintKind::Attach => c.attach.solve(p, w, inv_h2),
+            ConstraintKind::BranchAttach => c.branch_attach.solve(p, w, inv_h2),
+            ConstraintKind::Hard => c.hard.solve(p, w, inv_h2),
+            ConstraintKind::Soft => c.soft.solve(p, w, inv_h2),
+            ConstraintKind::Sliding => c.sliding.solve(p, w, inv_h2),
+            ConstraintKind::Branch => c.branch.solve(p, w, inv_h2),
+            ConstraintKind::Internal => c.internal.solve(p, w, inv_h2),
+            ConstraintKind::Fiber => c.fiber.solve(p, w, inv_h2),
+            ConstraintKind::Volume => {
+                if let Some(v) = &mut c.volume {
+                    v.solve(p, w, inv_h2);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,213 @@
+//! Solver settings: the projection method, the sweep schedule, and every
+//! global tunable with its unit and default.
+
+use crate::constraints::ConstraintKind;
+use crate::error::BuildError;
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// How constraints are projected.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub enum SolverMethod {
+    /// Gauss–Seidel, one muscle after another, in the canonical order. The
+    /// reference: bit-identical run to run.
+    #[default]
+    Sequential,
+    /// Graph colouring (SPEC §9.3, the thesis' SMT-G): each muscle's
+    /// constraints in greedy first-fit colour groups, the groups one after
+    /// the other and each group's constraints in parallel. Volume and the
+    /// bone contacts are solved after the groups, as in `Sequential`.
+    Colored {
+        /// Which constraints are coloured together.
+        scope: ColorScope,
+    },
+    /// Jacobi (SPEC §9.2, the thesis' SMT-J): the attachments solved
+    /// Gauss–Seidel first, every other constraint (but Volume) computed from
+    /// the same positions, in parallel, and each particle moved by `omega`
+    /// times the mean of its corrections. The per-particle sum is a gather in
+    /// a fixed order (no float atomics), so any thread count gives the same
+    /// bits. Volume and the bone contacts follow, as in `Sequential`.
+    Jacobi {
+        /// Over-relaxation ω ∈ [1, 2].
+        omega: f32,
+    },
+    /// Hybrid (Fratarcangeli & Pellacini 2015): the per-muscle colour groups
+    /// with at least `min_group` constraints are solved Gauss–Seidel, group by
+    /// group; the small, high-degree tail (the internal points' links) is
+    /// solved by one Jacobi pass after them, with over-relaxation `omega`.
+    /// Volume and the bone contacts follow. Bit-identical for any thread count.
+    Hybrid {
+        /// Smallest colour group solved Gauss–Seidel (≥ 1).
+        min_group: u32,
+        /// Over-relaxation ω ∈ [1, 2] of the Jacobi tail.
+        omega: f32,
+    },
+}
+
+/// What a colouring spans.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ColorScope {
+    /// One colouring per muscle, one constraint at a time (the thesis): the
+    /// internal points make it long (24 groups per arm muscle).
+    #[default]
+    PerMuscle,
+    /// Clustered colouring (see [`coloring::ColorPlan::clustered`]): the
+    /// single-particle constraints of a vertex and the links of an internal
+    /// point are units one thread solves in order, which cuts the colours to
+    /// an edge colouring's. The solver runs colour `c` of every muscle in one
+    /// parallel sweep, split into chunks, so a large muscle spreads over
+    /// every thread.
+    Global,
+}
+
+/// How the solver spreads a coloured method's sweeps over its threads. Both
+/// give the same bits; only the speed differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SweepSchedule {
+    /// Colour by colour across muscles when splitting by muscle would leave
+    /// threads idle (one muscle much larger than its share), else by muscle.
+    #[default]
+    Auto,
+    /// Each thread takes whole muscles: one synchronisation per iteration.
+    ByMuscle,
+    /// Colour `c` of every muscle in one parallel sweep of (muscle, chunk)
+    /// tasks: balanced, one synchronisation per colour. Only for
+    /// `Colored { scope: Global }` and `Hybrid`.
+    ByColor,
+}
+
+/// Global solver settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SolverSettings {
+    /// Frame time step. Units: s. Default: `1/60`.
+    pub dt: f32,
+    /// Global iterations per (sub)step; each muscle runs `min(own, N)`. Default: `10`.
+    pub iterations: u32,
+    /// Substeps per frame (Small Steps). Default: `1`.
+    pub substeps: u32,
+    /// Gravity as an acceleration, in real units. Units: m/s². Default: `(0, 0, 0)`.
+    pub gravity: Vec3,
+    /// Multiplies `dt` (slow motion < 1). Default: `1`.
+    pub time_scale: f32,
+    /// Scene units are `1/space_scale` of real size: gravity is divided by it.
+    /// Default: `1` (scene in metres).
+    pub space_scale: f32,
+    /// Projection method. Default: [`SolverMethod::Sequential`].
+    pub method: SolverMethod,
+    /// Order in which constraint types are projected. Default: SPEC §4.3.
+    pub projection_order: Vec<ConstraintKind>,
+    /// Measure per-block time. Default: `true`.
+    pub timers: bool,
+    /// Every this many frames each vertex runs the full (BVH) closest-point
+    /// search on each target, staggered over vertices; in between, the
+    /// closest point walks over the target from last iteration's triangle
+    /// (see [`crate::closest`]). `1` = a full search every frame. Default: `16`.
+    pub full_search_interval: u32,
+    /// Every this many frames each vertex re-chooses the target it slides
+    /// on among the targets within its contact band (staggered over
+    /// vertices, and always with a full search); in between it keeps its
+    /// target and checks only the bones whose boxes it is in (it may have
+    /// entered one). A vertex switches only to a target it has come nearer
+    /// to *relative to its rest gap* by a tenth of the band (see
+    /// `pipeline::closest`). `1` = every frame. Default: `4`.
+    pub choose_interval: u32,
+    /// When `walk_every_iteration` is off, later iterations of a frame
+    /// project each vertex onto the face, edge or corner of the triangle the
+    /// first iteration's walk found (a few loads) instead of re-projecting
+    /// onto the triangle. Faster, exact while the vertex stays in that
+    /// feature's region, but the contact point then jumps at the next
+    /// frame's walk. Default: `false`.
+    pub feature_contacts: bool,
+    /// Walk over the targets in every iteration, so the contact point slides
+    /// from triangle to triangle as the vertex does. With `false` the walk
+    /// runs in the first iteration of a frame and later iterations re-project
+    /// onto the triangle it found: the constraint then jumps from the
+    /// triangle's plane to the next triangle at the next frame, a kick that
+    /// kept T5 at rest moving at 1.2 mm/s (0.08 with walking). Default: `true`.
+    pub walk_every_iteration: bool,
+    /// Worker threads for closest data and projection, split by muscle
+    /// (SPEC §9.1): `1` spawns none, `0` uses every core. Muscles read each
+    /// other only through published snapshots, so the result is bit-identical
+    /// for any count. Default: `1`.
+    pub threads: u32,
+    /// How coloured methods use the threads. Default: [`SweepSchedule::Auto`].
+    pub schedule: SweepSchedule,
+    /// Scenes with fewer constraints than this run their passes over
+    /// muscles on the calling thread, and scenes with fewer particles their
+    /// per-particle passes (integration, goals, publishing), whatever
+    /// `threads` says: a fork and join (≈ 10 µs on the 2-core development
+    /// machine) costs more than the split saves. The same bits either way.
+    /// Default: `8192` (P2 ran 3× and P3 1.2× slower on two threads than on
+    /// one without it; P4 and T7 split).
+    pub parallel_threshold: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self {
+            dt: 1.0 / 60.0,
+            iterations: 10,
+            substeps: 1,
+            gravity: Vec3::ZERO,
+            time_scale: 1.0,
+            space_scale: 1.0,
+            method: SolverMethod::Sequential,
+            projection_order: ConstraintKind::CANONICAL_ORDER.to_vec(),
+            timers: true,
+            full_search_interval: 16,
+            choose_interval: 4,
+            feature_contacts: false,
+            walk_every_iteration: true,
+            threads: 1,
+            schedule: SweepSchedule::Auto,
+            parallel_threshold: 8192,
+        }
+    }
+}
+
+impl SolverSettings {
+    /// Rejects NaN and out-of-range values.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {
+            muscle: "solver".into(),
+            parameter: parameter.into(),
+            value,
+            reason: reason.into(),
+        };
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return Err(bad("dt", self.dt, "must be finite and > 0"));
+        }
+        if let SolverMethod::Jacobi { omega } | SolverMethod::Hybrid { omega, .. } = self.method
+            && !(1.0..=2.0).contains(&omega)
+        {
+            return Err(bad("method.omega", omega, "must be in [1, 2]"));
+        }
+        if let SolverMethod::Hybrid { min_group: 0, .. } = self.method {
+            return Err(bad("method.min_group", 0.0, "must be ≥ 1"));
+        }
+        if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
+            return Err(bad("time_scale", self.time_scale, "must be finite and > 0"));
+        }
+        if !(self.space_scale > 0.0 && self.space_scale.is_finite()) {
+            return Err(bad(
+                "space_scale",
+                self.space_scale,
+                "must be finite and > 0",
+            ));
+        }
+        if self.full_search_interval == 0 {
+            return Err(bad("full_search_interval", 0.0, "must be ≥ 1"));
+        }
+        if self.choose_interval == 0 {
+            return Err(bad("choose_interval", 0.0, "must be ≥ 1"));
+        }
+        if self.iterations == 0 || self.substeps == 0 {
+            return Err(bad("iterations/substeps", 0.0, "must be ≥ 1"));
+        }
+        if !self.gravity.is_finite() {
+            return Err(bad("gravity", f32::NAN, "must be finite"));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,195 @@
+//! [`Solver::step`]: the frame loop over the solver's own muscles, built
+//! from the passes of [`super::passes`] (the Bevy systems run the same).
+
+use super::Solver;
+use super::params::{FrameParams, IterationParams, Parallelism, SubstepParams};
+use super::passes;
+use super::pipeline;
+use super::timings::{StepTimings, Stopwatch};
+use crate::animation::interpolate_rigid;
+use crate::closest::TargetSource;
+use glam::Affine3A;
+use std::sync::Mutex;
+
+impl Solver {
+    /// Advances one frame. With worker threads the whole frame runs on
+    /// one of them, so its passes reach the others without a cross-thread
+    /// hand-off each.
+    pub fn step(&mut self) {
+        let frame = self.begin_step();
+        match self.pool.threads() {
+            Some(threads) => threads.install(|| self.run_frame(&frame)),
+            None => self.run_frame(&frame),
+        }
+    }
+
+    /// The frame loop (SPEC §4; the module docs of [`super`]).
+    fn run_frame(&mut self, frame: &FrameParams) {
+        let mut clock = Stopwatch::new(self.valid.timers);
+        let mut timings = StepTimings::default();
+        self.read_inputs(frame);
+        clock.lap(&mut timings.read_inputs);
+        let iterations = frame.iterations_for(&self.muscles);
+        for s in 0..frame.substeps {
+            let sub = frame.substep(s);
+            self.pose_bones(&sub);
+            clock.lap(&mut timings.update_targets);
+            self.begin_substep(&sub);
+            clock.lap(&mut timings.integrate);
+            for it in 0..iterations {
+                let iteration = sub.iteration(it);
+                self.publish(&iteration);
+                clock.lap(&mut timings.update_targets);
+                self.iterate(&iteration, &mut clock, &mut timings);
+            }
+            self.end_substep(&sub);
+            clock.lap(&mut timings.apply);
+        }
+        clock.lap(&mut timings.write_back);
+        self.time += frame.dt;
+        self.frame += 1;
+        timings.clock_reads = clock.reads();
+        self.timings = timings;
+    }
+
+    /// Validates the settings (keeping the last valid ones, with a warning,
+    /// when they fail), syncs the pool, links new targets and decides where
+    /// the work runs.
+    fn begin_step(&mut self) -> FrameParams {
+        if self.settings != self.valid && self.rejected.as_ref() != Some(&self.settings) {
+            match self.settings.validate() {
+                Ok(()) => {
+                    self.valid.clone_from(&self.settings);
+                    self.rejected = None;
+                }
+                Err(e) => {
+                    self.warnings.push(format!(
+                        "settings rejected, keeping the last valid ones: {e}"
+                    ));
+                    self.rejected = Some(self.settings.clone());
+                }
+            }
+        }
+        self.pool.sync(self.valid.threads);
+        self.prepare();
+        let (constraints, particles) = self
+            .muscles
+            .iter()
+            .fold((0, 0), |(c, p), m| (c + m.counts().total(), p + m.x.len()));
+        let parallelism =
+            Parallelism::decide(&self.valid, self.pool.is_some(), constraints, particles);
+        FrameParams::new(&self.valid, self.frame, parallelism)
+    }
+
+    /// Bone poses at the frame's end (skeleton, tracks) and activations
+    /// (curves, then sensors → triggers → layers) → rest lengths.
+    fn read_inputs(&mut self, frame: &FrameParams) {
+        let end_time = self.time + frame.dt;
+        if let Some(sk) = &mut self.skeleton {
+            sk.pose_at(end_time);
+        }
+        for b in &mut self.bones {
+            b.previous = b.transform;
+            if let (Some(body), Some(sk)) = (b.body, &self.skeleton) {
+                b.transform = sk.world[body];
+            } else if !b.track.keys.is_empty() {
+                b.transform = b.track.sample(end_time);
+            }
+        }
+        for (m, curve) in self.muscles.iter_mut().zip(&self.curves) {
+            if let Some(c) = curve {
+                m.params.activation = c.sample(end_time);
+            }
+        }
+        if let Some(rig) = &mut self.activation_rig {
+            // The substep buffer holds the frame-end poses until the first substep.
+            self.substep_poses.clear();
+            self.substep_poses
+                .extend(self.bones.iter().map(|b| b.transform));
+            let muscles = &mut self.muscles;
+            rig.update(&self.substep_poses, end_time, frame.dt, |m, a| {
+                if let Some(m) = muscles.get_mut(m) {
+                    m.params.activation = a;
+                }
+            });
+        }
+        let warnings = Mutex::new(&mut self.warnings);
+        let warn = |w| warnings.lock().expect("not poisoned").push(w);
+        let always = self.valid.parallel_threshold == 0;
+        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
+        self.pairs.with(pairs, |muscles| {
+            passes::update_activations(&self.pool, muscles, always, warn);
+        });
+    }
+
+    /// Every bone at the substep's end time: skeleton bones from the
+    /// skeleton itself, others interpolated rigidly between the frame's
+    /// start and end poses; their targets moved there.
+    fn pose_bones(&mut self, sub: &SubstepParams) {
+        let alpha = sub.alpha;
+        if alpha < 1.0
+            && let Some(sk) = &mut self.skeleton
+        {
+            sk.pose_at(self.time + alpha * sub.frame.dt);
+        }
+        let sk = self.skeleton.as_ref();
+        self.substep_poses.clear();
+        self.substep_poses
+            .extend(self.bones.iter().map(|b| match (b.body, sk) {
+                (Some(body), Some(sk)) if alpha < 1.0 => sk.world[body],
+                _ => interpolate_rigid(b.previous, b.transform, alpha),
+            }));
+        for (b, pose) in self.bones.iter().zip(&self.substep_poses) {
+            if let Some(t) = b.target {
+                self.targets[t].set_transform(*pose);
+            }
+        }
+    }
+
+    /// Attachment goals, integration, pins, λ = 0 for every muscle.
+    fn begin_substep(&mut self, sub: &SubstepParams) {
+        let poses = &self.substep_poses;
+        let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
+        for m in &mut self.muscles {
+            pipeline::update_attachment_goals(m, &pose);
+        }
+        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
+        self.pairs.with(pairs, |muscles| {
+            passes::begin_substep_all(&self.pool, muscles, sub);
+        });
+    }
+
+    /// `v = (p − x)/h`, `x = p` for every muscle.
+    fn end_substep(&mut self, sub: &SubstepParams) {
+        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
+        self.pairs.with(pairs, |muscles| {
+            passes::end_substep_all(&self.pool, muscles, sub);
+        });
+    }
+
+    /// Publishes the targeted muscles' predictions as their snapshots.
+    fn publish(&mut self, it: &IterationParams) {
+        let (published, muscles) = (&self.published, &self.muscles);
+        let snapshots = self
+            .targets
+            .iter_mut()
+            .enumerate()
+            .filter(|(t, _)| published.binary_search(t).is_ok())
+            .filter_map(|(_, t)| match t.source {
+                TargetSource::Muscle(m) => Some((t, &muscles[m])),
+                TargetSource::Bone(_) => None,
+            });
+        self.snapshots.with(snapshots, |snapshots| {
+            passes::publish_all(&self.pool, snapshots, it);
+        });
+    }
+
+    /// Closest data and projection of every muscle.
+    fn iterate(&mut self, it: &IterationParams, clock: &mut Stopwatch, t: &mut StepTimings) {
+        let targets = self.targets.as_slice();
+        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
+        self.pairs.with(pairs, |muscles| {
+            passes::iterate_all(&self.pool, muscles, targets, it, clock, t);
+        });
+    }
+}
