@@ -28,7 +28,9 @@
 //! tenth; the Gauss–Seidel methods agree either way).
 //!
 //! Without an internal structure the mass is spread by one-ring area, as
-//! before. [`MassMode::Uniform`] gives every particle the same mass.
+//! before. [`MassMode::AreaDensity`] (a thin layer) gives each vertex its
+//! one-ring area times the layer's mass per area; [`MassMode::Uniform`]
+//! gives every particle the same mass.
 
 use super::{InternalStructure, MassMode, MuscleParams, VertexMaps};
 use crate::mesh::SurfaceMesh;
@@ -47,7 +49,16 @@ pub(super) fn inverse_masses(
         MassMode::Density(rho) if internal > 0 && structure.vertex_point.len() == n => {
             lumped_solid(mesh, structure, f64::from(rho))
         }
-        MassMode::Density(rho) => by_area(mesh, f64::from(rho)),
+        MassMode::Density(rho) => {
+            let area = vertex_areas(mesh);
+            let sum: f64 = area.iter().sum();
+            let total = f64::from(rho) * mesh.volume().abs();
+            area.iter().map(|&a| (total * a / sum) as f32).collect()
+        }
+        MassMode::AreaDensity(sigma) => vertex_areas(mesh)
+            .iter()
+            .map(|&a| (f64::from(sigma) * a) as f32)
+            .collect(),
     };
     if let Some(mult) = &maps.mass {
         for (m, k) in mass.iter_mut().zip(mult) {
@@ -99,8 +110,8 @@ fn lumped_solid(mesh: &SurfaceMesh, structure: &InternalStructure, rho: f64) -> 
 }
 
 /// `ρ V_rest` spread over the surface vertices by one-ring area.
-fn by_area(mesh: &SurfaceMesh, rho: f64) -> Vec<f32> {
-    let total = rho * mesh.volume().abs();
+/// Each vertex's share of the surface: a third of its triangles' areas.
+fn vertex_areas(mesh: &SurfaceMesh) -> Vec<f64> {
     let mut area = vec![0.0f64; mesh.vertex_count()];
     for &[a, b, c] in &mesh.triangles {
         let [pa, pb, pc] = [a, b, c].map(|v| mesh.positions[v as usize]);
@@ -109,8 +120,7 @@ fn by_area(mesh: &SurfaceMesh, rho: f64) -> Vec<f32> {
         area[b as usize] += t;
         area[c as usize] += t;
     }
-    let sum: f64 = area.iter().sum();
-    area.iter().map(|&a| (total * a / sum) as f32).collect()
+    area
 }
 
 #[cfg(test)]

@@ -103,6 +103,10 @@ pub enum MassMode {
     /// mass to each corner (see `muscle::mass`); without one, spread over the
     /// surface by one-ring area. Units: kg/m³. Muscle: 1060.
     Density(f32),
+    /// `σ A` for a thin layer (skin, fat, fascia: a surface with no
+    /// volume of its own): each vertex carries a third of the area of its
+    /// triangles. Units: kg/m² (skin 1.1 kg/m² per millimetre of thickness).
+    AreaDensity(f32),
 }
 
 impl Default for MassMode {
@@ -189,6 +193,41 @@ impl Default for MuscleParams {
 }
 
 impl MuscleParams {
+    /// Parameters of a passive surface layer — skin, fat or fascia over
+    /// the muscles, the second kind of deformable body: no internal
+    /// structure, no volume constraint, no activation. Its edges keep their
+    /// rest lengths (the fibre batch, plain distance constraints at
+    /// activation 0) and every vertex slides on its targets at its rest
+    /// gap, up to `reach` away (Sliding only: Soft and Hard weights 0).
+    /// `area_density` is the layer's mass per area (kg/m²); `reach` is its
+    /// [`Self::contact_reach`] (m, scene units): at least the layer's
+    /// thickness over what it slides on.
+    pub fn surface_layer(area_density: f32, reach: f32) -> Self {
+        Self {
+            volume: VolumeParams {
+                enabled: false,
+                ..Default::default()
+            },
+            internal: InternalStructureParams {
+                enabled: false,
+                ..Default::default()
+            },
+            bulge: false,
+            branch_follows_activation: false,
+            internal_follows_activation: false,
+            weights: ConnectionWeights {
+                sliding: 1.0,
+                soft: 0.0,
+                hard: 0.0,
+                normalize: false,
+            },
+            contact_reach: reach,
+            mass: MassMode::AreaDensity(area_density),
+            fiber_smoothing: 0,
+            ..Default::default()
+        }
+    }
+
     /// Rejects NaN, negative or out-of-range values with a typed error.
     pub fn validate(&self, muscle: &str) -> Result<(), BuildError> {
         let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {
@@ -244,7 +283,9 @@ impl MuscleParams {
             }
         }
         match self.mass {
-            MassMode::Uniform(m) | MassMode::Density(m) if !(m > 0.0 && m.is_finite()) => {
+            MassMode::Uniform(m) | MassMode::Density(m) | MassMode::AreaDensity(m)
+                if !(m > 0.0 && m.is_finite()) =>
+            {
                 Err(bad("mass", m, "mass and density must be finite and > 0"))
             }
             _ => Ok(()),
