@@ -1,8 +1,11 @@
-//! Building a muscle: particles, masses, internal structure, fibres and the
-//! muscle's own constraints (SPEC §2, §5, §7). Target connections (Sliding,
-//! Soft, Hard) are linked by the [`Solver`](crate::solver::Solver) once every
-//! target exists.
+//! A muscle — or any deformable body, such as a surface layer
+//! ([`MuscleParams::surface_layer`]) — as plain data: particles, masses,
+//! internal structure, fibres and constraints (SPEC §2, §5, §7), built by
+//! [`Muscle::build`]. Target connections (Sliding, Soft, Hard) are linked by
+//! the solver once every target exists; what the solver derives from a
+//! muscle lives in its workspace, not here.
 
+mod build;
 mod fiber;
 mod internal;
 mod mass;
@@ -13,8 +16,8 @@ pub use internal::{InternalStructure, InternalStructureParams};
 pub use params::{Compliances, ConnectionWeights, MassMode, MuscleParams};
 
 use crate::constraints::{
-    ActivationRest, ActivationScale, ConstraintCounts, ConstraintKind, DistanceBatch, PointBatch,
-    SlidingBatch, VolumeConstraint,
+    ActivationScale, ConstraintCounts, ConstraintKind, DistanceBatch, PointBatch, SlidingBatch,
+    VolumeConstraint,
 };
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
@@ -265,228 +268,6 @@ pub struct Muscle {
 }
 
 impl Muscle {
-    /// Builds a muscle. `bone_transform(i)` gives bone `i`'s start-frame transform.
-    pub fn build(
-        desc: MuscleDesc,
-        bone_transform: impl Fn(usize) -> Affine3A,
-    ) -> Result<Self, BuildError> {
-        let MuscleDesc {
-            name,
-            mesh,
-            roots,
-            attachments,
-            targets,
-            params,
-            maps,
-        } = desc;
-        params.validate(&name)?;
-        let n = mesh.vertex_count();
-        for (map, len) in [
-            ("sliding", maps.sliding.as_ref().map(Vec::len)),
-            ("soft", maps.soft.as_ref().map(Vec::len)),
-            ("hard", maps.hard.as_ref().map(Vec::len)),
-            ("fibers", maps.fibers.as_ref().map(Vec::len)),
-            ("mass", maps.mass.as_ref().map(Vec::len)),
-        ] {
-            if let Some(len) = len.filter(|&l| l != n) {
-                return Err(BuildError::MapLength {
-                    muscle: name.clone(),
-                    map: map.into(),
-                    len,
-                    count: n,
-                });
-            }
-        }
-        let report = mesh.report();
-        let closed = report.is_closed_manifold();
-        if params.volume.enabled && !closed && !params.volume.allow_open_mesh {
-            return Err(BuildError::Mesh(
-                report
-                    .into_result(&mesh.source)
-                    .expect_err("mesh is not closed"),
-            ));
-        }
-        if !report.non_manifold_edges.is_empty() {
-            return Err(BuildError::Mesh(
-                report.into_result(&mesh.source).expect_err("non-manifold"),
-            ));
-        }
-        // Attachment vertices.
-        let mut attach_vertices = Vec::with_capacity(attachments.len());
-        for (i, a) in attachments.iter().enumerate() {
-            let v = match (a.vertex, a.point) {
-                (Some(v), _) => v,
-                (None, Some(point)) => nearest_vertex(&mesh.positions, point),
-                (None, None) => {
-                    return Err(BuildError::InvalidParameter {
-                        muscle: name.clone(),
-                        parameter: format!("attachments[{i}]"),
-                        value: f32::NAN,
-                        reason: "an attachment needs a vertex or a point".into(),
-                    });
-                }
-            };
-            if v as usize >= n {
-                return Err(BuildError::AttachmentVertexOutOfRange {
-                    muscle: name.clone(),
-                    attachment: i,
-                    vertex: v,
-                    count: n,
-                });
-            }
-            attach_vertices.push(v);
-        }
-        // Roots.
-        let root_list: Vec<u32> = match &roots {
-            Roots::Vertices(v) => v.clone(),
-            Roots::Attachments => attach_vertices.clone(),
-            Roots::LongestAxisTips => {
-                let axis = longest_axis(&mesh.positions);
-                let key = |i: &usize| mesh.positions[*i].dot(axis);
-                let lo = (0..n).min_by(|a, b| key(a).total_cmp(&key(b))).unwrap_or(0);
-                let hi = (0..n).max_by(|a, b| key(a).total_cmp(&key(b))).unwrap_or(0);
-                vec![lo as u32, hi as u32]
-            }
-        };
-        if let Some(&vertex) = root_list.iter().find(|&&r| r as usize >= n) {
-            return Err(BuildError::RootOutOfRange {
-                muscle: name,
-                vertex,
-                count: n,
-            });
-        }
-        if params.internal.enabled && root_list.is_empty() {
-            return Err(BuildError::NoRoots {
-                muscle: name,
-                reason: match roots {
-                    Roots::Attachments => "roots = Attachments but the muscle has no attachments",
-                    _ => "the root list is empty",
-                }
-                .into(),
-            });
-        }
-        let structure = if params.internal.enabled {
-            InternalStructure::build(&mesh, &root_list, &params.internal)
-        } else {
-            InternalStructure::default()
-        };
-        // Fibres.
-        let mut fibers = fiber_field(
-            &mesh,
-            params.internal.enabled.then_some(&structure),
-            params.fiber_smoothing,
-        );
-        if let Some(over) = &maps.fibers {
-            for (f, o) in fibers.iter_mut().zip(over) {
-                if let Some(o) = o.try_normalize() {
-                    *f = o;
-                }
-            }
-        }
-        fibers.extend_from_slice(&structure.tangents);
-        // Particles.
-        let mut rest = mesh.positions.clone();
-        rest.extend_from_slice(&structure.points);
-        let w = mass::inverse_masses(&mesh, &structure, &params, &maps);
-        let nparticles = rest.len();
-        let mut muscle = Self {
-            name,
-            params,
-            mesh,
-            structure,
-            roots: root_list,
-            fibers,
-            x: rest.clone(),
-            p: rest.clone(),
-            v: vec![Vec3::ZERO; nparticles],
-            free_w: w.clone(),
-            w,
-            rest,
-            surface_count: n,
-            attachments: Vec::new(),
-            targets,
-            constraints: MuscleConstraints::default(),
-            maps,
-            activation_reported: false,
-            topology: 0,
-        };
-        muscle.build_own_constraints(closed);
-        for (a, v) in attachments.iter().zip(attach_vertices) {
-            muscle.add_attachment(a.bone, v, &bone_transform);
-        }
-        muscle.pin_attachments();
-        muscle.update_activation();
-        Ok(muscle)
-    }
-
-    fn build_own_constraints(&mut self, closed: bool) {
-        let c = &mut self.constraints;
-        let p = &self.params;
-        let rest = &self.rest;
-        let n = self.surface_count;
-        // Fiber: one per polygon edge, activation-driven.
-        c.fiber.compliance = p.compliance.fiber;
-        let mut act = ActivationRest::default();
-        for &[a, b] in &self.mesh.edges {
-            c.fiber
-                .push(a, b, rest[a as usize].distance(rest[b as usize]));
-            act.edge.push(rest[a as usize] - rest[b as usize]);
-            act.fiber.push(ActivationRest::edge_fiber(
-                self.fibers[a as usize],
-                self.fibers[b as usize],
-            ));
-        }
-        c.fiber.activation = Some(act);
-        // Branch and Internal.
-        c.branch.compliance = p.compliance.branch;
-        c.internal.compliance = p.compliance.internal;
-        if p.internal.enabled && !self.structure.points.is_empty() {
-            let mut act = ActivationRest::default();
-            for &[a, b] in &self.structure.branches {
-                let (ia, ib) = (n as u32 + a, n as u32 + b);
-                c.branch
-                    .push(ia, ib, rest[ia as usize].distance(rest[ib as usize]));
-                act.edge.push(rest[ia as usize] - rest[ib as usize]);
-                act.fiber.push(ActivationRest::edge_fiber(
-                    self.fibers[ia as usize],
-                    self.fibers[ib as usize],
-                ));
-            }
-            if p.branch_follows_activation {
-                c.branch.activation = Some(act);
-            }
-            let mut act = ActivationRest::default();
-            for v in 0..n as u32 {
-                let ip = n as u32 + self.structure.vertex_point[v as usize];
-                c.internal
-                    .push(v, ip, rest[v as usize].distance(rest[ip as usize]));
-                act.edge.push(rest[v as usize] - rest[ip as usize]);
-                act.fiber.push(ActivationRest::edge_fiber(
-                    self.fibers[v as usize],
-                    self.fibers[ip as usize],
-                ));
-            }
-            if p.internal_follows_activation {
-                c.internal.activation = Some(act);
-            }
-        }
-        // Volume.
-        if p.volume.enabled && closed {
-            c.volume = Some(VolumeConstraint {
-                polygon_offsets: self.mesh.polygon_offsets.clone(),
-                polygon_indices: self.mesh.polygon_indices.clone(),
-                surface_count: n,
-                rest_volume: self.mesh.volume(),
-                ratio: 1.0,
-                compliance: p.compliance.volume,
-                lambda: 0.0,
-                gradient: Vec::with_capacity(n),
-                relative: Vec::with_capacity(n),
-                ..Default::default()
-            });
-        }
-    }
-
     /// The topology counter (see the field's docs).
     pub fn topology(&self) -> u64 {
         self.topology

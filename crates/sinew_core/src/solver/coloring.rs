@@ -25,17 +25,13 @@
 
 use super::jacobi::JacobiState;
 use super::sweep::{PlannedConstraint, Segment, SweepPlan};
-use crate::constraints::{ConstraintBatch, ConstraintCounts, ConstraintKind, Correction};
+use crate::constraints::{ConstraintCounts, ConstraintKind};
 use crate::muscle::Muscle;
 
-/// One constraint of a muscle: its type and index in that type's batch.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct ConstraintRef {
-    /// Constraint type.
-    pub kind: ConstraintKind,
-    /// Index in the batch of `kind`.
-    pub index: u32,
-}
+pub use super::constraint_ref::{
+    ConstraintRef, commit, constraints_in_order, correction, particles_of,
+};
+use super::constraint_ref::{batch_particles, compliances, is_off, particle_indices};
 
 /// Constraint groups of one muscle in which no two constraints share a
 /// particle.
@@ -43,85 +39,6 @@ pub struct ConstraintRef {
 pub struct ColorGroups {
     /// The groups, in solve order.
     pub groups: Vec<Vec<ConstraintRef>>,
-}
-
-/// The particles constraint `c` of `m` moves (targets are read-only).
-pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<u32>; 2] {
-    match c.kind {
-        ConstraintKind::Volume => [None, None],
-        ConstraintKind::Branch | ConstraintKind::Internal | ConstraintKind::Fiber => {
-            batch_particles(m, c).map(Some)
-        }
-        _ => [Some(batch_particles(m, c)[0]), None],
-    }
-}
-
-/// Every particle-index array of `m`'s constraints (Volume, which moves
-/// every particle, apart), batch by batch in a fixed order.
-fn particle_indices(m: &Muscle) -> [&[u32]; 11] {
-    let k = &m.constraints;
-    [
-        &k.attach.particle,
-        &k.branch_attach.particle,
-        &k.hard.particle,
-        &k.soft.particle,
-        &k.sliding.particle,
-        &k.branch.a,
-        &k.branch.b,
-        &k.internal.a,
-        &k.internal.b,
-        &k.fiber.a,
-        &k.fiber.b,
-    ]
-}
-
-/// The per-constraint compliances of `m`'s batches that have them, batch
-/// by batch: a constraint with a non-finite one is switched off (weight 0)
-/// and does nothing.
-fn compliances(m: &Muscle) -> [&[f32]; 5] {
-    let k = &m.constraints;
-    [
-        &k.attach.compliance,
-        &k.branch_attach.compliance,
-        &k.hard.compliance,
-        &k.soft.compliance,
-        &k.sliding.compliance,
-    ]
-}
-
-/// Whether constraint `c` of `m` is switched off (see [`compliances`]).
-fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
-    // The position of `c`'s batch in `compliances`.
-    let batch = match c.kind {
-        ConstraintKind::Attach => 0,
-        ConstraintKind::BranchAttach => 1,
-        ConstraintKind::Hard => 2,
-        ConstraintKind::Soft => 3,
-        ConstraintKind::Sliding => 4,
-        _ => return false,
-    };
-    !compliances(m)[batch][c.index as usize].is_finite()
-}
-
-/// Every constraint of `m` except Volume, type by type in `order`.
-pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<ConstraintRef> {
-    let k = &m.constraints;
-    let mut out = Vec::new();
-    for &kind in order {
-        let len = match kind {
-            ConstraintKind::Attach => k.attach.particle.len(),
-            ConstraintKind::BranchAttach => k.branch_attach.particle.len(),
-            ConstraintKind::Hard => k.hard.particle.len(),
-            ConstraintKind::Soft => k.soft.particle.len(),
-            ConstraintKind::Sliding => k.sliding.particle.len(),
-            ConstraintKind::Branch => k.branch.len(),
-            ConstraintKind::Internal => k.internal.len(),
-            ConstraintKind::Fiber => k.fiber.len(),
-            ConstraintKind::Volume => 0,
-        };
-        out.extend((0..len as u32).map(|index| ConstraintRef { kind, index }));
-    }
-    out
 }
 
 impl ColorGroups {
@@ -197,24 +114,6 @@ pub enum PlanKind {
         /// Smallest colour solved Gauss–Seidel.
         min_group: u32,
     },
-}
-
-/// The particles constraint `c` of `m` moves, as its batch gives them
-/// (`[p, p]` for one particle; Volume has none).
-fn batch_particles(m: &Muscle, c: ConstraintRef) -> [u32; 2] {
-    let k = &m.constraints;
-    let i = c.index as usize;
-    match c.kind {
-        ConstraintKind::Attach => k.attach.particles(i),
-        ConstraintKind::BranchAttach => k.branch_attach.particles(i),
-        ConstraintKind::Hard => k.hard.particles(i),
-        ConstraintKind::Soft => k.soft.particles(i),
-        ConstraintKind::Sliding => k.sliding.particles(i),
-        ConstraintKind::Branch => k.branch.particles(i),
-        ConstraintKind::Internal => k.internal.particles(i),
-        ConstraintKind::Fiber => k.fiber.particles(i),
-        ConstraintKind::Volume => unreachable!("Volume is solved apart"),
-    }
 }
 
 /// Constraints per parallel chunk of a colour (and the least a Jacobi pass
@@ -582,148 +481,5 @@ impl ColorPlan {
     }
 }
 
-/// Projection of constraint `c` of `m` at the current predictions, not yet
-/// written (Volume has none: it is solved apart).
-pub fn correction(m: &Muscle, c: ConstraintRef, inv_h2: f32) -> Option<Correction> {
-    let (k, p, w, i) = (&m.constraints, &m.p, &m.w, c.index as usize);
-    match c.kind {
-        ConstraintKind::Attach => k.attach.correction(i, p, w, inv_h2),
-        ConstraintKind::BranchAttach => k.branch_attach.correction(i, p, w, inv_h2),
-        ConstraintKind::Hard => k.hard.correction(i, p, w, inv_h2),
-        ConstraintKind::Soft => k.soft.correction(i, p, w, inv_h2),
-        ConstraintKind::Sliding => k.sliding.correction(i, p, w, inv_h2),
-        ConstraintKind::Branch => k.branch.correction(i, p, w, inv_h2),
-        ConstraintKind::Internal => k.internal.correction(i, p, w, inv_h2),
-        ConstraintKind::Fiber => k.fiber.correction(i, p, w, inv_h2),
-        ConstraintKind::Volume => None,
-    }
-}
-
-/// Writes a correction of constraint `c` of `m`.
-pub fn commit(m: &mut Muscle, c: ConstraintRef, correction: &Correction) {
-    let (k, p, i) = (&mut m.constraints, &mut m.p, c.index as usize);
-    match c.kind {
-        ConstraintKind::Attach => k.attach.commit(i, correction, p),
-        ConstraintKind::BranchAttach => k.branch_attach.commit(i, correction, p),
-        ConstraintKind::Hard => k.hard.commit(i, correction, p),
-        ConstraintKind::Soft => k.soft.commit(i, correction, p),
-        ConstraintKind::Sliding => k.sliding.commit(i, correction, p),
-        ConstraintKind::Branch => k.branch.commit(i, correction, p),
-        ConstraintKind::Internal => k.internal.commit(i, correction, p),
-        ConstraintKind::Fiber => k.fiber.commit(i, correction, p),
-        ConstraintKind::Volume => {}
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scene::builtin;
-    use std::collections::HashSet;
-
-    /// The muscles of `scene` after one step, with a contact band wide
-    /// enough that every connection holds.
-    fn muscles(scene: &str) -> Vec<Muscle> {
-        let mut scene = builtin(scene).unwrap();
-        for m in &mut scene.muscles {
-            m.params.contact_reach = 1.0;
-        }
-        let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
-        // One step links the target connections (Sliding, Soft, Hard).
-        solver.step();
-        solver.muscles().to_vec()
-    }
-
-    #[test]
-    fn no_group_shares_a_particle_and_every_constraint_is_in_exactly_one() {
-        for scene in ["P1", "P2", "P3"] {
-            for m in muscles(scene) {
-                let order = ConstraintKind::CANONICAL_ORDER;
-                let colors = ColorGroups::greedy(&m, &order);
-                for (g, group) in colors.groups.iter().enumerate() {
-                    let mut seen = HashSet::new();
-                    for &c in group {
-                        for p in particles_of(&m, c).into_iter().flatten() {
-                            assert!(
-                                seen.insert(p),
-                                "{scene}: group {g} moves particle {p} twice"
-                            );
-                        }
-                    }
-                }
-                let all: Vec<ConstraintRef> = colors.groups.concat();
-                let unique: HashSet<ConstraintRef> = all.iter().copied().collect();
-                assert_eq!(
-                    all.len(),
-                    unique.len(),
-                    "{scene}: a constraint in two groups"
-                );
-                let expected = m.counts().total() - usize::from(m.constraints.volume.is_some());
-                assert_eq!(all.len(), expected, "{scene}: constraints missing");
-            }
-        }
-    }
-
-    #[test]
-    fn switched_off_constraints_are_skipped_and_switching_one_makes_the_plan_stale() {
-        for mut m in muscles("P3") {
-            let order = ConstraintKind::CANONICAL_ORDER;
-            let all = ColorPlan::clustered(&m, &order);
-            assert!(all.fits(&m));
-            assert_eq!(all.sweep.op_count(), all.refs.len());
-            // Weight 0 on a Soft and a Sliding constraint: the old plan no
-            // longer fits, the new one leaves both out of its runs.
-            m.constraints.soft.compliance[0] = f32::INFINITY;
-            m.constraints.sliding.compliance[1] = f32::INFINITY;
-            assert!(!all.fits(&m));
-            let fewer = ColorPlan::clustered(&m, &order);
-            assert!(fewer.fits(&m));
-            assert_eq!(fewer.refs, all.refs, "the colouring itself is unchanged");
-            assert_eq!(fewer.sweep.op_count(), all.sweep.op_count() - 2);
-            let planned = |kind, index| {
-                fewer.sweep.segments().iter().any(|s| {
-                    s.kind == kind
-                        && fewer
-                            .sweep
-                            .segment_ops(s)
-                            .iter()
-                            .any(|op| op.index == index)
-                })
-            };
-            assert!(!planned(ConstraintKind::Soft, 0));
-            assert!(!planned(ConstraintKind::Sliding, 1));
-            assert!(planned(ConstraintKind::Soft, 1));
-        }
-    }
-
-    #[test]
-    fn group_count_is_bounded_below_by_the_busiest_particle() {
-        // A particle moved by d constraints needs d different groups; greedy
-        // first-fit never needs more than (max constraints sharing a particle
-        // with one constraint) + 1.
-        for m in muscles("P3") {
-            let refs = constraints_in_order(&m, &ConstraintKind::CANONICAL_ORDER);
-            let mut degree = vec![0usize; m.x.len()];
-            for &c in &refs {
-                for p in particles_of(&m, c).into_iter().flatten() {
-                    degree[p as usize] += 1;
-                }
-            }
-            let max_degree = *degree.iter().max().unwrap();
-            let colors = ColorGroups::greedy(&m, &ConstraintKind::CANONICAL_ORDER);
-            assert!(colors.len() >= max_degree);
-            let max_conflicts = refs
-                .iter()
-                .map(|&c| {
-                    particles_of(&m, c)
-                        .into_iter()
-                        .flatten()
-                        .map(|p| degree[p as usize] - 1)
-                        .sum::<usize>()
-                })
-                .max()
-                .unwrap();
-            assert!(colors.len() <= max_conflicts + 1);
-        }
-    }
-}
+mod tests;

@@ -21,6 +21,7 @@
 
 mod closest_data;
 pub mod coloring;
+mod constraint_ref;
 pub mod jacobi;
 mod link;
 mod momentum;
@@ -482,5 +483,7 @@ impl Solver {
     }
 }
 
+#[cfg(test)]
+mod determinism_tests;
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,79 @@
+use super::*;
+use crate::mesh::primitives::MeshGenerator;
+
+fn ellipsoid_target() -> TargetSurface {
+    let mesh = MeshGenerator::Ellipsoid {
+        center: Vec3::ZERO,
+        radii: Vec3::new(0.05, 0.02, 0.025),
+        segments: 16,
+        stacks: 12,
+    }
+    .build("target")
+    .unwrap();
+    TargetSurface::new(
+        "target",
+        TargetSource::Muscle(0),
+        mesh.positions,
+        mesh.triangles,
+    )
+}
+
+/// Deterministic pseudo-random unit-ish vectors.
+fn jitter(i: usize) -> Vec3 {
+    let k = i as f32;
+    Vec3::new((k * 12.9898).sin(), (k * 78.233).sin(), (k * 37.719).sin())
+}
+
+fn brute_force(t: &TargetSurface, q: Vec3) -> f32 {
+    (0..t.triangles.len() as u32)
+        .map(|i| t.closest_on_triangle(i, q).0.distance(q))
+        .fold(f32::MAX, f32::min)
+}
+
+#[test]
+fn walk_reaches_the_closest_point_of_a_convex_target() {
+    let t = ellipsoid_target();
+    for i in 0..200 {
+        // A query 2–20 mm outside the surface, started from the triangle
+        // closest to a point a little way around the surface.
+        let dir = jitter(i + 1).normalize();
+        let on_surface = t.closest(dir * 0.06, None).unwrap();
+        let q = on_surface.point + on_surface.normal * (0.002 + 0.018 * (i % 10) as f32 / 9.0);
+        let start = t
+            .closest(q + 0.01 * jitter(i + 1000), None)
+            .unwrap()
+            .triangle;
+        let walked = t.walk(q, start).expect("walk converges");
+        let exact = brute_force(&t, q);
+        assert!(
+            (walked.distance - exact).abs() <= 1e-6 + 1e-4 * exact,
+            "query {i}: walk {} vs exact {exact}",
+            walked.distance
+        );
+    }
+}
+
+#[test]
+fn full_search_stays_exact_on_a_moved_target_before_refit() {
+    let mut t = ellipsoid_target();
+    let moved: Vec<Vec3> = t
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| *p * 1.05 + 0.002 * jitter(i) + Vec3::new(0.003, 0.0, 0.0))
+        .collect();
+    t.publish(&moved);
+    assert!(t.slack > 0.0);
+    for i in 0..200 {
+        let q = 0.07 * jitter(i + 7);
+        let hit = t.closest(q, None).unwrap();
+        let exact = brute_force(&t, q);
+        assert!(
+            (hit.distance - exact).abs() <= 1e-6,
+            "query {i}: BVH {} vs exact {exact}",
+            hit.distance
+        );
+    }
+    t.refit(true);
+    assert_eq!(t.slack, 0.0);
+}

@@ -1,0 +1,109 @@
+use super::*;
+use crate::scene::builtin;
+use std::collections::HashSet;
+
+/// The muscles of `scene` after one step, with a contact band wide
+/// enough that every connection holds.
+fn muscles(scene: &str) -> Vec<Muscle> {
+    let mut scene = builtin(scene).unwrap();
+    for m in &mut scene.muscles {
+        m.params.contact_reach = 1.0;
+    }
+    let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
+    // One step links the target connections (Sliding, Soft, Hard).
+    solver.step();
+    solver.muscles().to_vec()
+}
+
+#[test]
+fn no_group_shares_a_particle_and_every_constraint_is_in_exactly_one() {
+    for scene in ["P1", "P2", "P3"] {
+        for m in muscles(scene) {
+            let order = ConstraintKind::CANONICAL_ORDER;
+            let colors = ColorGroups::greedy(&m, &order);
+            for (g, group) in colors.groups.iter().enumerate() {
+                let mut seen = HashSet::new();
+                for &c in group {
+                    for p in particles_of(&m, c).into_iter().flatten() {
+                        assert!(
+                            seen.insert(p),
+                            "{scene}: group {g} moves particle {p} twice"
+                        );
+                    }
+                }
+            }
+            let all: Vec<ConstraintRef> = colors.groups.concat();
+            let unique: HashSet<ConstraintRef> = all.iter().copied().collect();
+            assert_eq!(
+                all.len(),
+                unique.len(),
+                "{scene}: a constraint in two groups"
+            );
+            let expected = m.counts().total() - usize::from(m.constraints.volume.is_some());
+            assert_eq!(all.len(), expected, "{scene}: constraints missing");
+        }
+    }
+}
+
+#[test]
+fn switched_off_constraints_are_skipped_and_switching_one_makes_the_plan_stale() {
+    for mut m in muscles("P3") {
+        let order = ConstraintKind::CANONICAL_ORDER;
+        let all = ColorPlan::clustered(&m, &order);
+        assert!(all.fits(&m));
+        assert_eq!(all.sweep.op_count(), all.refs.len());
+        // Weight 0 on a Soft and a Sliding constraint: the old plan no
+        // longer fits, the new one leaves both out of its runs.
+        m.constraints.soft.compliance[0] = f32::INFINITY;
+        m.constraints.sliding.compliance[1] = f32::INFINITY;
+        assert!(!all.fits(&m));
+        let fewer = ColorPlan::clustered(&m, &order);
+        assert!(fewer.fits(&m));
+        assert_eq!(fewer.refs, all.refs, "the colouring itself is unchanged");
+        assert_eq!(fewer.sweep.op_count(), all.sweep.op_count() - 2);
+        let planned = |kind, index| {
+            fewer.sweep.segments().iter().any(|s| {
+                s.kind == kind
+                    && fewer
+                        .sweep
+                        .segment_ops(s)
+                        .iter()
+                        .any(|op| op.index == index)
+            })
+        };
+        assert!(!planned(ConstraintKind::Soft, 0));
+        assert!(!planned(ConstraintKind::Sliding, 1));
+        assert!(planned(ConstraintKind::Soft, 1));
+    }
+}
+
+#[test]
+fn group_count_is_bounded_below_by_the_busiest_particle() {
+    // A particle moved by d constraints needs d different groups; greedy
+    // first-fit never needs more than (max constraints sharing a particle
+    // with one constraint) + 1.
+    for m in muscles("P3") {
+        let refs = constraints_in_order(&m, &ConstraintKind::CANONICAL_ORDER);
+        let mut degree = vec![0usize; m.x.len()];
+        for &c in &refs {
+            for p in particles_of(&m, c).into_iter().flatten() {
+                degree[p as usize] += 1;
+            }
+        }
+        let max_degree = *degree.iter().max().unwrap();
+        let colors = ColorGroups::greedy(&m, &ConstraintKind::CANONICAL_ORDER);
+        assert!(colors.len() >= max_degree);
+        let max_conflicts = refs
+            .iter()
+            .map(|&c| {
+                particles_of(&m, c)
+                    .into_iter()
+                    .flatten()
+                    .map(|p| degree[p as usize] - 1)
+                    .sum::<usize>()
+            })
+            .max()
+            .unwrap();
+        assert!(colors.len() <= max_conflicts + 1);
+    }
+}
