@@ -175,6 +175,18 @@ impl ConstraintBatch for DistanceBatch {
         &self.lambda
     }
 
+    fn particles_per_constraint(&self) -> usize {
+        2
+    }
+
+    fn index_arrays(&self) -> [&[u32]; 2] {
+        [&self.a, &self.b]
+    }
+
+    fn lambda_storage(&mut self) -> &mut Vec<f32> {
+        &mut self.lambda
+    }
+
     #[inline(always)]
     fn particles(&self, i: usize) -> [u32; 2] {
         [self.a[i], self.b[i]]

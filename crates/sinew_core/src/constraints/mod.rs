@@ -106,9 +106,13 @@ impl ConstraintKind {
     }
 }
 
-/// The multipliers of a muscle's eight batched constraint types, taken out
-/// for a parallel sweep, indexed by [`ConstraintKind`] (Volume apart).
-pub(crate) type MuscleLambdas = [Vec<f32>; 8];
+/// Number of batched constraint types (every type but Volume, which is
+/// last in [`ConstraintKind`]).
+pub(crate) const BATCHED_KINDS: usize = ConstraintKind::CANONICAL_ORDER.len() - 1;
+
+/// The multipliers of a muscle's batched constraint types, taken out for a
+/// parallel sweep, indexed by [`ConstraintKind`] (Volume apart).
+pub(crate) type MuscleLambdas = [Vec<f32>; BATCHED_KINDS];
 
 /// Constraint counts per type.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -213,6 +217,23 @@ pub trait ConstraintBatch {
     /// for a single particle (targets are read-only).
     fn particles(&self, i: usize) -> [u32; 2];
 
+    /// Particles each constraint moves: 1 (a particle and a target) or 2.
+    fn particles_per_constraint(&self) -> usize;
+
+    /// The batch's particle-index arrays (the second empty for a
+    /// one-particle type): what a colour plan compares to see whether it
+    /// still fits.
+    fn index_arrays(&self) -> [&[u32]; 2];
+
+    /// Whether constraint `i` is switched off (a connection of weight 0:
+    /// non-finite compliance); every method skips it. Default: never.
+    fn is_off(&self, _i: usize) -> bool {
+        false
+    }
+
+    /// The multipliers' storage, to move out for a parallel sweep and back.
+    fn lambda_storage(&mut self) -> &mut Vec<f32>;
+
     /// Projection of constraint `i` with accumulated multiplier `lambda`,
     /// given its particles ([`Gathered`]), not yet written (`None`: nothing
     /// to do). The kernel every method shares.
@@ -257,6 +278,26 @@ pub trait ConstraintBatch {
             }
         }
     }
+}
+
+/// Code run on one batch with its concrete type (a closure generic over the
+/// batch type): what [`crate::muscle::MuscleConstraints::with_batch`] calls,
+/// so that a loop over a batch's constraints is compiled once per type with
+/// the kernel inlined.
+pub trait BatchFn {
+    /// What the call returns.
+    type Output;
+    /// Runs on `batch`.
+    fn call<B: ConstraintBatch>(self, batch: &B) -> Self::Output;
+}
+
+/// [`BatchFn`] for a batch to write
+/// ([`crate::muscle::MuscleConstraints::with_batch_mut`]).
+pub trait BatchFnMut {
+    /// What the call returns.
+    type Output;
+    /// Runs on `batch`.
+    fn call<B: ConstraintBatch>(self, batch: &mut B) -> Self::Output;
 }
 
 /// The XPBD multiplier increment (SPEC §3.1). Returns 0 for a singular system.

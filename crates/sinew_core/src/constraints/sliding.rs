@@ -122,6 +122,22 @@ impl ConstraintBatch for SlidingBatch {
         &self.lambda
     }
 
+    fn particles_per_constraint(&self) -> usize {
+        1
+    }
+
+    fn index_arrays(&self) -> [&[u32]; 2] {
+        [&self.particle, &[]]
+    }
+
+    fn is_off(&self, i: usize) -> bool {
+        !self.compliance[i].is_finite()
+    }
+
+    fn lambda_storage(&mut self) -> &mut Vec<f32> {
+        &mut self.lambda
+    }
+
     #[inline(always)]
     fn particles(&self, i: usize) -> [u32; 2] {
         [self.particle[i]; 2]

@@ -6,19 +6,18 @@
 //! muscle lives in its workspace, not here.
 
 mod build;
+mod constraints;
 mod fiber;
 mod internal;
 mod mass;
 mod params;
 
+pub use constraints::MuscleConstraints;
 pub use fiber::{fiber_field, longest_axis};
 pub use internal::{InternalStructure, InternalStructureParams};
 pub use params::{Compliances, ConnectionWeights, MassMode, MuscleParams};
 
-use crate::constraints::{
-    ActivationScale, ConstraintCounts, ConstraintKind, DistanceBatch, PointBatch, SlidingBatch,
-    VolumeConstraint,
-};
+use crate::constraints::{ActivationScale, ConstraintCounts};
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use glam::{Affine3A, Vec3};
@@ -121,99 +120,6 @@ pub struct SurfaceAnchor {
     /// within [`MuscleParams::contact_reach`]. A vertex with no such target
     /// keeps its Soft and Hard constraints, switched off.
     pub connected: bool,
-}
-
-/// The constraint batches of a muscle, one per type.
-#[derive(Clone, Debug, Default)]
-pub struct MuscleConstraints {
-    /// Attach.
-    pub attach: PointBatch,
-    /// BranchAttach.
-    pub branch_attach: PointBatch,
-    /// Hard.
-    pub hard: PointBatch,
-    /// Soft.
-    pub soft: PointBatch,
-    /// Sliding.
-    pub sliding: SlidingBatch,
-    /// Branch.
-    pub branch: DistanceBatch,
-    /// Internal.
-    pub internal: DistanceBatch,
-    /// Fiber.
-    pub fiber: DistanceBatch,
-    /// Volume (absent for open meshes allowed by the scene).
-    pub volume: Option<VolumeConstraint>,
-    /// Rest anchors of `hard`.
-    pub hard_anchor: Vec<SurfaceAnchor>,
-    /// Rest anchors of `soft`.
-    pub soft_anchor: Vec<SurfaceAnchor>,
-}
-
-impl MuscleConstraints {
-    /// Counts per type.
-    pub fn counts(&self) -> ConstraintCounts {
-        let mut c = ConstraintCounts::default();
-        c.0[ConstraintKind::Attach as usize] = self.attach.len();
-        c.0[ConstraintKind::BranchAttach as usize] = self.branch_attach.len();
-        c.0[ConstraintKind::Hard as usize] = self.hard.len();
-        c.0[ConstraintKind::Soft as usize] = self.soft.len();
-        c.0[ConstraintKind::Sliding as usize] = self.sliding.len();
-        c.0[ConstraintKind::Branch as usize] = self.branch.len();
-        c.0[ConstraintKind::Internal as usize] = self.internal.len();
-        c.0[ConstraintKind::Fiber as usize] = self.fiber.len();
-        c.0[ConstraintKind::Volume as usize] = usize::from(self.volume.is_some());
-        c
-    }
-
-    /// Moves the multipliers of the batched types out (for a parallel
-    /// sweep), indexed by [`ConstraintKind`]; the batches keep empty ones
-    /// until [`MuscleConstraints::restore_lambdas`].
-    pub(crate) fn take_lambdas(&mut self) -> crate::constraints::MuscleLambdas {
-        use std::mem::take;
-        [
-            take(&mut self.attach.lambda),
-            take(&mut self.branch_attach.lambda),
-            take(&mut self.hard.lambda),
-            take(&mut self.soft.lambda),
-            take(&mut self.sliding.lambda),
-            take(&mut self.branch.lambda),
-            take(&mut self.internal.lambda),
-            take(&mut self.fiber.lambda),
-        ]
-    }
-
-    /// Puts back what [`MuscleConstraints::take_lambdas`] took.
-    pub(crate) fn restore_lambdas(&mut self, lambdas: crate::constraints::MuscleLambdas) {
-        let [a, ba, h, so, sl, b, i, f] = lambdas;
-        self.attach.lambda = a;
-        self.branch_attach.lambda = ba;
-        self.hard.lambda = h;
-        self.soft.lambda = so;
-        self.sliding.lambda = sl;
-        self.branch.lambda = b;
-        self.internal.lambda = i;
-        self.fiber.lambda = f;
-    }
-
-    /// Resets every λ to 0 (start of each frame or substep).
-    pub fn clear_lambdas(&mut self) {
-        for b in [
-            &mut self.attach,
-            &mut self.branch_attach,
-            &mut self.hard,
-            &mut self.soft,
-        ] {
-            b.lambda.fill(0.0);
-        }
-        for b in [&mut self.branch, &mut self.internal, &mut self.fiber] {
-            b.lambda.fill(0.0);
-        }
-        self.sliding.lambda.fill(0.0);
-        if let Some(v) = &mut self.volume {
-            v.lambda = 0.0;
-        }
-    }
 }
 
 /// A simulated muscle: particle state (surface vertices first, then internal

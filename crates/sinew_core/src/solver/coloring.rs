@@ -31,7 +31,7 @@ use crate::muscle::Muscle;
 pub use super::constraint_ref::{
     ConstraintRef, commit, constraints_in_order, correction, particles_of,
 };
-use super::constraint_ref::{batch_particles, compliances, is_off, particle_indices};
+use super::constraint_ref::{batch_particles, index_arrays, is_off, off_flags};
 
 /// Constraint groups of one muscle in which no two constraints share a
 /// particle.
@@ -140,11 +140,11 @@ pub struct ColorPlan {
     /// disjointness by the sweep module itself.
     sweep: SweepPlan,
     /// The particle indices of every constraint when the plan was built,
-    /// batch by batch ([`particle_indices`]): what makes a colour's units
+    /// batch by batch ([`index_arrays`]): what makes a colour's units
     /// disjoint, compared whole (a memory compare) by [`ColorPlan::fits`].
     tied: Vec<u32>,
     /// Which constraints were switched off when the plan was built
-    /// ([`compliances`], batch by batch): the sweeps skip them, and
+    /// ([`off_flags`], batch by batch): the sweeps skip them, and
     /// [`ColorPlan::fits`] compares.
     off: Vec<bool>,
     /// `refs[units[u]..units[u + 1]]` is unit `u`.
@@ -277,11 +277,8 @@ impl ColorPlan {
         let mut plan = Self {
             refs: Vec::new(),
             sweep: SweepPlan::default(),
-            tied: particle_indices(m).concat(),
-            off: compliances(m)
-                .iter()
-                .flat_map(|c| c.iter().map(|c| !c.is_finite()))
-                .collect(),
+            tied: index_arrays(m).flatten().copied().collect(),
+            off: off_flags(m).collect(),
             units: vec![0],
             colors: vec![0],
             chunks: vec![0],
@@ -414,7 +411,7 @@ impl ColorPlan {
     pub fn fits(&self, m: &Muscle) -> bool {
         let mut rest = self.tied.as_slice();
         self.sized_for(m)
-            && particle_indices(m).into_iter().all(|now| {
+            && index_arrays(m).all(|now| {
                 let Some((then, after)) = rest.split_at_checked(now.len()) else {
                     return false;
                 };
@@ -422,10 +419,7 @@ impl ColorPlan {
                 then == now
             })
             && rest.is_empty()
-            && compliances(m)
-                .iter()
-                .flat_map(|c| c.iter().map(|c| !c.is_finite()))
-                .eq(self.off.iter().copied())
+            && off_flags(m).eq(self.off.iter().copied())
     }
 
     /// The cheap part of [`ColorPlan::fits`]: counts only.

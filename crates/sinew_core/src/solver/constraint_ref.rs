@@ -1,9 +1,11 @@
 //! One constraint of a muscle by type and index, and what every method
-//! asks of it through its type's batch: the particles it moves, whether it
-//! is switched off, its projection and the commit of that projection.
+//! asks of it through the constraint table
+//! ([`crate::muscle::MuscleConstraints`]): the particles it moves, whether
+//! it is switched off, its projection and the commit of that projection.
 
-use crate::constraints::{ConstraintBatch, ConstraintKind, Correction};
-use crate::muscle::Muscle;
+use crate::constraints::{BatchFn, BatchFnMut, ConstraintBatch, ConstraintKind, Correction};
+use crate::muscle::{Muscle, MuscleConstraints};
+use glam::Vec3;
 
 /// One constraint of a muscle: its type and index in that type's batch.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -16,130 +18,118 @@ pub struct ConstraintRef {
 
 /// The particles constraint `c` of `m` moves (targets are read-only).
 pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<u32>; 2] {
-    match c.kind {
-        ConstraintKind::Volume => [None, None],
-        ConstraintKind::Branch | ConstraintKind::Internal | ConstraintKind::Fiber => {
-            batch_particles(m, c).map(Some)
-        }
-        _ => [Some(batch_particles(m, c)[0]), None],
-    }
-}
-
-/// Every particle-index array of `m`'s constraints (Volume, which moves
-/// every particle, apart), batch by batch in a fixed order.
-pub(super) fn particle_indices(m: &Muscle) -> [&[u32]; 11] {
-    let k = &m.constraints;
-    [
-        &k.attach.particle,
-        &k.branch_attach.particle,
-        &k.hard.particle,
-        &k.soft.particle,
-        &k.sliding.particle,
-        &k.branch.a,
-        &k.branch.b,
-        &k.internal.a,
-        &k.internal.b,
-        &k.fiber.a,
-        &k.fiber.b,
-    ]
-}
-
-/// The per-constraint compliances of `m`'s batches that have them, batch
-/// by batch: a constraint with a non-finite one is switched off (weight 0)
-/// and does nothing.
-pub(super) fn compliances(m: &Muscle) -> [&[f32]; 5] {
-    let k = &m.constraints;
-    [
-        &k.attach.compliance,
-        &k.branch_attach.compliance,
-        &k.hard.compliance,
-        &k.soft.compliance,
-        &k.sliding.compliance,
-    ]
-}
-
-/// Whether constraint `c` of `m` is switched off (see [`compliances`]).
-pub(super) fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
-    // The position of `c`'s batch in `compliances`.
-    let batch = match c.kind {
-        ConstraintKind::Attach => 0,
-        ConstraintKind::BranchAttach => 1,
-        ConstraintKind::Hard => 2,
-        ConstraintKind::Soft => 3,
-        ConstraintKind::Sliding => 4,
-        _ => return false,
+    let Some(batch) = m.constraints.batch(c.kind) else {
+        return [None, None];
     };
-    !compliances(m)[batch][c.index as usize].is_finite()
+    let [a, b] = batch.particles(c.index as usize);
+    [
+        Some(a),
+        (batch.particles_per_constraint() == 2).then_some(b),
+    ]
+}
+
+/// Every particle-index array of `m`'s batches (Volume, which moves every
+/// particle, apart), in table order.
+pub(super) fn index_arrays(m: &Muscle) -> impl Iterator<Item = &[u32]> {
+    let k = &m.constraints;
+    MuscleConstraints::BATCHED
+        .iter()
+        .filter_map(|&kind| k.batch(kind))
+        .flat_map(|b| b.index_arrays())
+}
+
+/// Whether each constraint of `m`'s batches is switched off (weight 0),
+/// in table order.
+pub(super) fn off_flags(m: &Muscle) -> impl Iterator<Item = bool> + '_ {
+    let k = &m.constraints;
+    MuscleConstraints::BATCHED
+        .iter()
+        .filter_map(|&kind| k.batch(kind))
+        .flat_map(|b| (0..b.count()).map(move |i| b.is_off(i)))
+}
+
+/// Whether constraint `c` of `m` is switched off (a connection of weight 0).
+pub(super) fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
+    m.constraints
+        .batch(c.kind)
+        .is_some_and(|b| b.is_off(c.index as usize))
 }
 
 /// Every constraint of `m` except Volume, type by type in `order`.
 pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<ConstraintRef> {
-    let k = &m.constraints;
     let mut out = Vec::new();
     for &kind in order {
-        let len = match kind {
-            ConstraintKind::Attach => k.attach.particle.len(),
-            ConstraintKind::BranchAttach => k.branch_attach.particle.len(),
-            ConstraintKind::Hard => k.hard.particle.len(),
-            ConstraintKind::Soft => k.soft.particle.len(),
-            ConstraintKind::Sliding => k.sliding.particle.len(),
-            ConstraintKind::Branch => k.branch.len(),
-            ConstraintKind::Internal => k.internal.len(),
-            ConstraintKind::Fiber => k.fiber.len(),
-            ConstraintKind::Volume => 0,
-        };
+        let len = m.constraints.batch(kind).map_or(0, |b| b.count());
         out.extend((0..len as u32).map(|index| ConstraintRef { kind, index }));
     }
     out
 }
 
 /// The particles constraint `c` of `m` moves, as its batch gives them
-/// (`[p, p]` for one particle; Volume has none).
+/// (`[p, p]` for one particle).
+///
+/// # Panics
+/// For Volume, which is solved apart.
 pub(super) fn batch_particles(m: &Muscle, c: ConstraintRef) -> [u32; 2] {
-    let k = &m.constraints;
-    let i = c.index as usize;
-    match c.kind {
-        ConstraintKind::Attach => k.attach.particles(i),
-        ConstraintKind::BranchAttach => k.branch_attach.particles(i),
-        ConstraintKind::Hard => k.hard.particles(i),
-        ConstraintKind::Soft => k.soft.particles(i),
-        ConstraintKind::Sliding => k.sliding.particles(i),
-        ConstraintKind::Branch => k.branch.particles(i),
-        ConstraintKind::Internal => k.internal.particles(i),
-        ConstraintKind::Fiber => k.fiber.particles(i),
-        ConstraintKind::Volume => unreachable!("Volume is solved apart"),
+    m.constraints
+        .batch(c.kind)
+        .expect("Volume is solved apart")
+        .particles(c.index as usize)
+}
+
+/// A projection at the current predictions, for [`correction`].
+struct Project<'a> {
+    i: usize,
+    p: &'a [Vec3],
+    w: &'a [f32],
+    inv_h2: f32,
+}
+
+impl BatchFn for Project<'_> {
+    type Output = Option<Correction>;
+
+    #[inline(always)]
+    fn call<B: ConstraintBatch>(self, batch: &B) -> Self::Output {
+        batch.correction(self.i, self.p, self.w, self.inv_h2)
     }
 }
 
 /// Projection of constraint `c` of `m` at the current predictions, not yet
 /// written (Volume has none: it is solved apart).
+#[inline]
 pub fn correction(m: &Muscle, c: ConstraintRef, inv_h2: f32) -> Option<Correction> {
-    let (k, p, w, i) = (&m.constraints, &m.p, &m.w, c.index as usize);
-    match c.kind {
-        ConstraintKind::Attach => k.attach.correction(i, p, w, inv_h2),
-        ConstraintKind::BranchAttach => k.branch_attach.correction(i, p, w, inv_h2),
-        ConstraintKind::Hard => k.hard.correction(i, p, w, inv_h2),
-        ConstraintKind::Soft => k.soft.correction(i, p, w, inv_h2),
-        ConstraintKind::Sliding => k.sliding.correction(i, p, w, inv_h2),
-        ConstraintKind::Branch => k.branch.correction(i, p, w, inv_h2),
-        ConstraintKind::Internal => k.internal.correction(i, p, w, inv_h2),
-        ConstraintKind::Fiber => k.fiber.correction(i, p, w, inv_h2),
-        ConstraintKind::Volume => None,
+    let project = Project {
+        i: c.index as usize,
+        p: &m.p,
+        w: &m.w,
+        inv_h2,
+    };
+    m.constraints.with_batch(c.kind, project).flatten()
+}
+
+/// A correction to write, for [`commit`].
+struct Commit<'a> {
+    i: usize,
+    correction: &'a Correction,
+    p: &'a mut [Vec3],
+}
+
+impl BatchFnMut for Commit<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn call<B: ConstraintBatch>(self, batch: &mut B) {
+        batch.commit(self.i, self.correction, self.p);
     }
 }
 
 /// Writes a correction of constraint `c` of `m`.
+#[inline]
 pub fn commit(m: &mut Muscle, c: ConstraintRef, correction: &Correction) {
-    let (k, p, i) = (&mut m.constraints, &mut m.p, c.index as usize);
-    match c.kind {
-        ConstraintKind::Attach => k.attach.commit(i, correction, p),
-        ConstraintKind::BranchAttach => k.branch_attach.commit(i, correction, p),
-        ConstraintKind::Hard => k.hard.commit(i, correction, p),
-        ConstraintKind::Soft => k.soft.commit(i, correction, p),
-        ConstraintKind::Sliding => k.sliding.commit(i, correction, p),
-        ConstraintKind::Branch => k.branch.commit(i, correction, p),
-        ConstraintKind::Internal => k.internal.commit(i, correction, p),
-        ConstraintKind::Fiber => k.fiber.commit(i, correction, p),
-        ConstraintKind::Volume => {}
-    }
+    let write = Commit {
+        i: c.index as usize,
+        correction,
+        p: &mut m.p,
+    };
+    m.constraints.with_batch_mut(c.kind, write);
 }

@@ -32,7 +32,7 @@ use super::sweep::{self, SweepPlan};
 use super::timings::TaskSplit;
 use super::workspace::MuscleWorkspace;
 use crate::closest::{TargetSet, TargetSurface};
-use crate::constraints::{ConstraintBatch, ConstraintKind};
+use crate::constraints::{BatchFnMut, ConstraintBatch, ConstraintKind};
 use crate::muscle::Muscle;
 use glam::{Affine3A, Vec3};
 
@@ -253,25 +253,33 @@ fn project_volume(m: &mut Muscle, inv_h2: f32, split: bool) {
     }
 }
 
+/// One Gauss–Seidel pass over a batch, handed to the constraint table to
+/// get its concrete type (the kernel inlined into the loop).
+struct Solve<'a> {
+    p: &'a mut [Vec3],
+    w: &'a [f32],
+    inv_h2: f32,
+}
+
+impl BatchFnMut for Solve<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn call<B: ConstraintBatch>(self, batch: &mut B) {
+        batch.solve(self.p, self.w, self.inv_h2);
+    }
+}
+
 /// Projects every constraint of `m` once, type by type in `order` (BE6,
 /// Gauss–Seidel).
 pub fn gauss_seidel(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
     let (p, w, c) = (&mut m.p, &m.w, &mut m.constraints);
     for &kind in order {
-        match kind {
-            ConstraintKind::Attach => c.attach.solve(p, w, inv_h2),
-            ConstraintKind::BranchAttach => c.branch_attach.solve(p, w, inv_h2),
-            ConstraintKind::Hard => c.hard.solve(p, w, inv_h2),
-            ConstraintKind::Soft => c.soft.solve(p, w, inv_h2),
-            ConstraintKind::Sliding => c.sliding.solve(p, w, inv_h2),
-            ConstraintKind::Branch => c.branch.solve(p, w, inv_h2),
-            ConstraintKind::Internal => c.internal.solve(p, w, inv_h2),
-            ConstraintKind::Fiber => c.fiber.solve(p, w, inv_h2),
-            ConstraintKind::Volume => {
-                if let Some(v) = &mut c.volume {
-                    v.solve(p, w, inv_h2);
-                }
-            }
+        let solve = Solve { p, w, inv_h2 };
+        if c.with_batch_mut(kind, solve).is_none()
+            && let Some(v) = &mut c.volume
+        {
+            v.solve(p, w, inv_h2);
         }
     }
 }

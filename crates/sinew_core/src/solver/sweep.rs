@@ -30,7 +30,8 @@
 )]
 
 use crate::constraints::{
-    ConstraintBatch, ConstraintCounts, ConstraintKind, Gathered, MuscleLambdas,
+    BATCHED_KINDS, BatchFn, ConstraintBatch, ConstraintCounts, ConstraintKind, Gathered,
+    MuscleLambdas,
 };
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
@@ -245,11 +246,28 @@ impl<'a, T: Copy> SharedSlice<'a, T> {
 /// borrows of what they only read.
 struct MuscleSweep<'a> {
     p: SharedSlice<'a, Vec3>,
-    lambdas: [SharedSlice<'a, f32>; 8],
+    lambdas: [SharedSlice<'a, f32>; BATCHED_KINDS],
     w: &'a [f32],
     k: &'a MuscleConstraints,
     plan: &'a SweepPlan,
     inv_h2: f32,
+}
+
+/// One run of a chunk, handed to the constraint table to get its batch's
+/// concrete type ([`MuscleConstraints::with_batch`]).
+struct RunSegment<'s, 'a> {
+    sweep: &'s MuscleSweep<'a>,
+    kind: ConstraintKind,
+    ops: &'s [PlannedConstraint],
+}
+
+impl BatchFn for RunSegment<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn call<B: ConstraintBatch>(self, batch: &B) {
+        self.sweep.run(batch, self.kind, self.ops);
+    }
 }
 
 impl<'a> MuscleSweep<'a> {
@@ -288,20 +306,14 @@ impl<'a> MuscleSweep<'a> {
     /// Runs chunk `chunk` of colour `color`: its runs of one constraint
     /// type one after the other.
     fn run_chunk(&self, color: usize, chunk: usize) {
-        let k = self.k;
         for s in self.plan.chunk_segments(color, chunk) {
             let ops = self.plan.segment_ops(s);
-            match s.kind {
-                ConstraintKind::Attach => self.run(&k.attach, s.kind, ops),
-                ConstraintKind::BranchAttach => self.run(&k.branch_attach, s.kind, ops),
-                ConstraintKind::Hard => self.run(&k.hard, s.kind, ops),
-                ConstraintKind::Soft => self.run(&k.soft, s.kind, ops),
-                ConstraintKind::Sliding => self.run(&k.sliding, s.kind, ops),
-                ConstraintKind::Branch => self.run(&k.branch, s.kind, ops),
-                ConstraintKind::Internal => self.run(&k.internal, s.kind, ops),
-                ConstraintKind::Fiber => self.run(&k.fiber, s.kind, ops),
-                ConstraintKind::Volume => {}
-            }
+            let run = RunSegment {
+                sweep: self,
+                kind: s.kind,
+                ops,
+            };
+            self.k.with_batch(s.kind, run);
         }
     }
 
