@@ -329,7 +329,7 @@ impl ColorPlan {
             // before its Jacobi pass, as in `Jacobi` (see `jacobi`).
             let (gauss_seidel, jacobi) = tail
                 .into_iter()
-                .partition(|c| super::jacobi::single_particle(c.kind));
+                .partition(|c| super::jacobi::single_particle(m, c.kind));
             plan.tail = Some(JacobiState::from_parts(m, gauss_seidel, jacobi));
         }
         plan.sweep = plan.pack_segments(m, order, chunk_colors);

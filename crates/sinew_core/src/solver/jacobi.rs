@@ -41,7 +41,7 @@ impl JacobiState {
     pub fn new(m: &Muscle, order: &[ConstraintKind]) -> Self {
         let (gauss_seidel, jacobi): (Vec<_>, Vec<_>) = constraints_in_order(m, order)
             .into_iter()
-            .partition(|c| single_particle(c.kind));
+            .partition(|c| single_particle(m, c.kind));
         Self::from_parts(m, gauss_seidel, jacobi)
     }
 
@@ -88,17 +88,13 @@ impl JacobiState {
     }
 }
 
-/// Whether constraints of `kind` move a single particle toward a goal off
-/// the muscle (solved Gauss–Seidel by [`JacobiState::new`]).
-pub fn single_particle(kind: ConstraintKind) -> bool {
-    matches!(
-        kind,
-        ConstraintKind::Attach
-            | ConstraintKind::BranchAttach
-            | ConstraintKind::Hard
-            | ConstraintKind::Soft
-            | ConstraintKind::Sliding
-    )
+/// Whether `m`'s constraints of `kind` move a single particle toward a goal
+/// off the muscle (solved Gauss–Seidel by [`JacobiState::new`]): what
+/// their batch says ([`crate::constraints::ConstraintBatch::particles_per_constraint`]).
+pub fn single_particle(m: &Muscle, kind: ConstraintKind) -> bool {
+    m.constraints
+        .batch(kind)
+        .is_some_and(|b| b.particles_per_constraint() == 1)
 }
 
 /// The position a correction gives particle `p`, from `slot` of it.
@@ -194,8 +190,13 @@ mod tests {
             assert_eq!(state.entries.len(), touches);
             let degrees: usize = (0..m.x.len()).map(|p| state.degree(p)).sum();
             assert_eq!(degrees, touches);
-            assert!(state.gauss_seidel.iter().all(|c| single_particle(c.kind)));
-            assert!(state.jacobi.iter().all(|c| !single_particle(c.kind)));
+            assert!(
+                state
+                    .gauss_seidel
+                    .iter()
+                    .all(|c| single_particle(m, c.kind))
+            );
+            assert!(state.jacobi.iter().all(|c| !single_particle(m, c.kind)));
             let counts = m.counts();
             assert_eq!(
                 state.gauss_seidel.len() + state.jacobi.len(),
