@@ -53,7 +53,7 @@ impl Plugin for SinewDebugPlugin {
     fn build(&self, app: &mut App) {
         app.init_resource::<SinewDebugView>()
             .register_type::<SinewDebugView>()
-            .add_systems(PostUpdate, draw.after(crate::SinewSystems::WriteBack));
+            .add_systems(PostUpdate, draw.after(crate::SinewSystems::Step));
     }
 }
 

@@ -25,22 +25,29 @@
 //!
 //! ```text
 //! PostUpdate
-//!   SinewSystems::AnimateBones      (before TransformSystems::Propagate) validated settings,
-//!                                   scene tracks and skeletons at the step's end time
+//!   SinewSystems::Prepare         runs SinewPrepareSchedule:
+//!     (resets, muscle builds, scene spawns)
+//!     SinewSystems::AnimateBones    validated settings; scene tracks and skeletons
+//!                                   at the step's end time
 //!   TransformSystems::Propagate
-//!   SinewSystems::ReadInputs        bone poses, activation (curves, sensors), parameters,
-//!                                   target table and links, the step's FrameParams, rest lengths
-//!   SinewSystems::Substeps          runs SinewSubstepSchedule once per substep:
-//!       SinewSystems::Integrate         bones and their targets at the substep, attachment
-//!                                       goals, prediction (passes::begin_substep_all)
-//!       SinewSystems::Iterate           runs SinewIterationSchedule once per iteration:
-//!           SinewIterationSystems::UpdateTargets   muscle snapshots (passes::publish_all)
-//!           SinewIterationSystems::Solve           closest data and projection, one task per
-//!                                                  muscle or colour sweeps across muscles
-//!                                                  (passes::iterate_all)
+//!   SinewSystems::Step            runs SinewStepSchedule:
+//!     SinewSystems::ReadInputs      bone poses, activation (curves, sensors), parameters,
+//!                                   target table and links, FrameParams, rest lengths
+//!     SinewSystems::Substeps        runs SinewSubstepSchedule once per substep:
+//!       SinewSystems::Integrate       bones and their targets at the substep, attachment
+//!                                     goals, prediction (passes::begin_substep_all)
+//!       SinewSystems::Iterate         runs SinewIterationSchedule once per iteration:
+//!         SinewIterationSystems::UpdateTargets   snapshots (passes::publish_all)
+//!         SinewIterationSystems::Solve           closest data and projection
+//!                                                (passes::iterate_all)
 //!       SinewSystems::ApplyPredictions  v = (p − x)/h, x = p (passes::end_substep_all)
-//!   SinewSystems::WriteBack         render meshes, timings
+//!     SinewSystems::WriteBack       render meshes, timings
 //! ```
+//!
+//! The four sinew schedules run their chains on the single-threaded
+//! executor (no thread hand-off between systems); add your own systems to
+//! them with the sets above, e.g.
+//! `app.add_systems(SinewStepSchedule, my_system.after(SinewSystems::ReadInputs).before(SinewSystems::Substeps))`.
 //!
 //! ## Threads
 //!
@@ -96,20 +103,29 @@ pub mod prelude {
     pub use crate::ui::SinewUiPlugin;
     pub use crate::{
         ResetSimulation, SinewIterationSchedule, SinewIterationSystems, SinewPlugin,
-        SinewSubstepSchedule, SinewSystems, StepContext,
+        SinewPrepareSchedule, SinewStepSchedule, SinewSubstepSchedule, SinewSystems, StepContext,
     };
 }
 
 /// The plug-in's system sets, in the order they run.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SinewSystems {
-    /// Scene bone tracks and skeletons write bone `Transform`s for the end of
-    /// the coming step (before transform propagation).
+    /// In the plug-in's schedule ([`PostUpdate`] by default), before
+    /// transform propagation: runs [`SinewPrepareSchedule`] (resets, muscle
+    /// builds, scene spawns, [`SinewSystems::AnimateBones`]).
+    Prepare,
+    /// In the plug-in's schedule, after transform propagation: runs
+    /// [`SinewStepSchedule`], the step ([`SinewSystems::ReadInputs`],
+    /// [`SinewSystems::Substeps`], [`SinewSystems::WriteBack`]).
+    Step,
+    /// In [`SinewPrepareSchedule`]: scene bone tracks and skeletons write
+    /// bone `Transform`s for the end of the coming step.
     AnimateBones,
-    /// Bone poses, activation from curves and sensors, parameter edits,
-    /// target links (after transform propagation).
+    /// In [`SinewStepSchedule`]: bone poses, activation from curves and
+    /// sensors, parameter edits, target links.
     ReadInputs,
-    /// The substep loop (runs [`SinewSubstepSchedule`]).
+    /// In [`SinewStepSchedule`]: the substep loop (runs
+    /// [`SinewSubstepSchedule`]).
     Substeps,
     /// In [`SinewSubstepSchedule`]: bones, their targets and attachment
     /// goals at the substep's end time, then the prediction.
@@ -118,7 +134,7 @@ pub enum SinewSystems {
     Iterate,
     /// In [`SinewSubstepSchedule`]: velocities from the corrections.
     ApplyPredictions,
-    /// Render meshes rewritten; timings closed.
+    /// In [`SinewStepSchedule`]: render meshes rewritten; timings closed.
     WriteBack,
 }
 
@@ -131,6 +147,17 @@ pub enum SinewIterationSystems {
     /// per muscle (or colour by colour across muscles).
     Solve,
 }
+
+/// What runs before transform propagation, once a frame: resets, muscle
+/// builds, scene spawns, then [`SinewSystems::AnimateBones`].
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct SinewPrepareSchedule;
+
+/// The step, once a frame after transform propagation:
+/// [`SinewSystems::ReadInputs`], [`SinewSystems::Substeps`],
+/// [`SinewSystems::WriteBack`].
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct SinewStepSchedule;
 
 /// One substep: [`SinewSystems::Integrate`], [`SinewSystems::Iterate`],
 /// [`SinewSystems::ApplyPredictions`].
@@ -251,32 +278,47 @@ impl Plugin for SinewPlugin {
             .register_type::<MuscleTargets>()
             .register_type::<AttachmentBones>();
         for label in [
+            SinewPrepareSchedule.intern(),
+            SinewStepSchedule.intern(),
             SinewSubstepSchedule.intern(),
             SinewIterationSchedule.intern(),
         ] {
             let mut schedule = Schedule::new(label);
-            // Both are short chains run many times a frame: the
-            // single-threaded executor costs least; muscles still run in
-            // parallel inside each system, on the plug-in's worker pool.
+            // Chains of systems, each depending on the last: the
+            // single-threaded executor runs them with no hand-off between
+            // threads (in a multi-threaded schedule each costs a wake-up,
+            // ≈ 0.45 ms a frame for the step's systems); muscles still run
+            // in parallel inside each system, on the plug-in's worker pool.
             schedule.set_executor(SingleThreadedExecutor::new());
             app.add_schedule(schedule);
         }
         let schedule = self.schedule;
         app.configure_sets(
             schedule,
-            SinewSystems::AnimateBones
-                .before(TransformSystems::Propagate)
-                .run_if(simulation_running),
+            (
+                SinewSystems::Prepare.before(TransformSystems::Propagate),
+                SinewSystems::Step.after(TransformSystems::Propagate),
+            ),
+        )
+        .add_systems(
+            schedule,
+            (
+                run_prepare.in_set(SinewSystems::Prepare),
+                run_step.in_set(SinewSystems::Step),
+            ),
         )
         .configure_sets(
-            schedule,
+            SinewPrepareSchedule,
+            SinewSystems::AnimateBones.run_if(simulation_running),
+        )
+        .configure_sets(
+            SinewStepSchedule,
             (
                 SinewSystems::ReadInputs,
                 SinewSystems::Substeps,
                 SinewSystems::WriteBack,
             )
                 .chain()
-                .after(TransformSystems::Propagate)
                 .run_if(simulation_running),
         )
         .configure_sets(
@@ -297,15 +339,18 @@ impl Plugin for SinewPlugin {
                 .chain(),
         )
         .add_systems(
-            schedule,
+            SinewPrepareSchedule,
             (
-                (
-                    systems::begin_step,
-                    systems::animate_bone_tracks,
-                    systems::animate_skeletons,
-                )
-                    .chain()
-                    .in_set(SinewSystems::AnimateBones),
+                systems::begin_step,
+                systems::animate_bone_tracks,
+                systems::animate_skeletons,
+            )
+                .chain()
+                .in_set(SinewSystems::AnimateBones),
+        )
+        .add_systems(
+            SinewStepSchedule,
+            (
                 (
                     systems::place_new_targets,
                     systems::read_bones,
@@ -341,7 +386,7 @@ impl Plugin for SinewPlugin {
         // the bones are animated and propagated: what they spawn is posed in
         // the same frame.
         app.add_systems(
-            schedule,
+            SinewPrepareSchedule,
             (
                 reset_simulation,
                 build::start_builds,
@@ -349,13 +394,22 @@ impl Plugin for SinewPlugin {
                 scene::spawn_scenes,
             )
                 .chain()
-                .before(SinewSystems::AnimateBones)
-                .before(TransformSystems::Propagate),
+                .before(SinewSystems::AnimateBones),
         );
         scene::register(app);
         #[cfg(feature = "render")]
-        render::register(app, schedule);
+        render::register(app);
     }
+}
+
+/// Runs [`SinewPrepareSchedule`] (the system in [`SinewSystems::Prepare`]).
+fn run_prepare(world: &mut World) {
+    world.run_schedule(SinewPrepareSchedule);
+}
+
+/// Runs [`SinewStepSchedule`] (the system in [`SinewSystems::Step`]).
+fn run_step(world: &mut World) {
+    world.run_schedule(SinewStepSchedule);
 }
 
 /// Handles [`ResetSimulation`]: clock to zero, every scene respawned.

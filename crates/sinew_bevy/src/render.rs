@@ -7,8 +7,6 @@
 use crate::SinewSystems;
 use crate::components::*;
 use bevy::asset::RenderAssetUsages;
-use bevy::ecs::intern::Interned;
-use bevy::ecs::schedule::ScheduleLabel;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
 use sinew_core::mesh::{SurfaceMesh, vertex_normals};
@@ -38,9 +36,9 @@ impl Default for ActivationTint {
 #[derive(Component, Clone, Debug)]
 pub struct MuscleMesh(pub Handle<Mesh>);
 
-pub(crate) fn register(app: &mut App, schedule: Interned<dyn ScheduleLabel>) {
+pub(crate) fn register(app: &mut App) {
     app.register_type::<ActivationTint>().add_systems(
-        schedule,
+        crate::SinewStepSchedule,
         (
             (add_muscle_meshes, add_bone_meshes).before(SinewSystems::ReadInputs),
             (write_muscle_meshes, tint_muscles).in_set(SinewSystems::WriteBack),

@@ -1,8 +1,9 @@
 //! The Bevy driver's step allocates nothing once the scene is set: the arm
 //! (T5) steps 100 frames after its first ones with every method, on 1 and
 //! on 2 threads, under a global allocator that counts while the plug-in's
-//! step runs (its sets in `PostUpdate`, transform propagation and the
-//! render write-back apart).
+//! step runs (its animation of the bones in `SinewPrepareSchedule` and its
+//! step in `SinewStepSchedule`; transform propagation and the render
+//! write-back apart).
 //!
 //! With worker threads the plug-in hands work to its pool twice a step
 //! (the activations, then the substeps), and rayon's queue for jobs from
@@ -13,9 +14,7 @@
     reason = "a global allocator is an unsafe trait; this one forwards to the system's"
 )]
 
-use bevy::ecs::schedule::SingleThreadedExecutor;
 use bevy::prelude::*;
-use bevy::transform::TransformSystems;
 use sinew_bevy::prelude::*;
 use sinew_core::scene::Scene;
 use sinew_core::{ColorScope, SolverMethod};
@@ -96,19 +95,17 @@ fn stepping_the_arm_in_bevy_allocates_nothing_after_the_first_frames() {
                 bevy::transform::TransformPlugin,
                 SinewPlugin::default(),
             ));
-            app.edit_schedule(PostUpdate, |s| {
-                s.set_executor(SingleThreadedExecutor::new());
-            });
             app.add_systems(
-                PostUpdate,
+                SinewPrepareSchedule,
                 (
                     counting(true).before(SinewSystems::AnimateBones),
-                    counting(false)
-                        .after(SinewSystems::AnimateBones)
-                        .before(TransformSystems::Propagate),
-                    counting(true)
-                        .after(TransformSystems::Propagate)
-                        .before(SinewSystems::ReadInputs),
+                    counting(false).after(SinewSystems::AnimateBones),
+                ),
+            )
+            .add_systems(
+                SinewStepSchedule,
+                (
+                    counting(true).before(SinewSystems::ReadInputs),
                     counting(false)
                         .after(SinewSystems::Substeps)
                         .before(SinewSystems::WriteBack),
