@@ -36,7 +36,7 @@ pub struct SlidingBatch {
     pub compliance: Vec<f32>,
     /// Rest gap per (constraint, target): `rest_gap[i * targets + t]`;
     /// `f32::INFINITY` where the vertex never slides on that target (out of
-    /// its contact band at rest, see [`crate::solver::link`]).
+    /// its contact band at rest, see [`crate::solver::pipeline::link`]).
     /// Units: m.
     pub rest_gap: Vec<f32>,
     /// Whether the vertex was outside the target at rest, per (constraint, target).

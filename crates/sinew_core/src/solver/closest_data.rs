@@ -19,7 +19,7 @@ pub const CLOSEST_CHUNK: usize = 256;
 /// Closest data (BE5): Sliding's closest point on the closest target per
 /// vertex, and the current goals of Soft and Hard on their rest triangles.
 /// With `search.split` the vertices are split over the current rayon pool
-/// in chunks of [`CLOSEST_CHUNK`] (each vertex writes only its own data, so
+/// in chunks of `CLOSEST_CHUNK` (each vertex writes only its own data, so
 /// the result is the same).
 pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     m: &mut Muscle,

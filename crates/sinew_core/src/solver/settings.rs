@@ -51,7 +51,7 @@ pub enum ColorScope {
     /// internal points make it long (24 groups per arm muscle).
     #[default]
     PerMuscle,
-    /// Clustered colouring (see [`coloring::ColorPlan::clustered`]): the
+    /// Clustered colouring (see [`crate::solver::coloring::ColorPlan::clustered`]): the
     /// single-particle constraints of a vertex and the links of an internal
     /// point are units one thread solves in order, which cuts the colours to
     /// an edge colouring's. The solver runs colour `c` of every muscle in one
