@@ -6,7 +6,7 @@
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
 use sinew_core::scene::Scene;
-use sinew_core::{ColorScope, Solver, SolverMethod, SweepSchedule};
+use sinew_core::{Solver, SolverMethod, SweepSchedule};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -15,21 +15,6 @@ fn asset(path: &str) -> PathBuf {
         .join("../../assets")
         .join(path)
 }
-
-const METHODS: [SolverMethod; 5] = [
-    SolverMethod::Sequential,
-    SolverMethod::Colored {
-        scope: ColorScope::PerMuscle,
-    },
-    SolverMethod::Colored {
-        scope: ColorScope::Global,
-    },
-    SolverMethod::Jacobi { omega: 1.5 },
-    SolverMethod::Hybrid {
-        min_group: 32,
-        omega: 1.5,
-    },
-];
 
 /// What one configuration did: whether the bits agreed, and the iterations
 /// each driver swept by colour.
@@ -104,11 +89,11 @@ fn agree_on(scene_file: &str, frames: usize) {
     let path = asset(scene_file);
     let scene = Scene::load(&path).unwrap();
     let base = scene.instantiate(path.parent().unwrap()).unwrap();
-    let mut configs: Vec<_> = METHODS
+    let mut configs: Vec<_> = SolverMethod::EVERY
         .iter()
         .flat_map(|&m| [1, 2, 8].map(|t| (m, t, SweepSchedule::Auto)))
         .collect();
-    for method in [METHODS[2], METHODS[4]] {
+    for method in [SolverMethod::EVERY[2], SolverMethod::EVERY[4]] {
         configs.extend([2, 8].map(|t| (method, t, SweepSchedule::ByColor)));
     }
     let mut failures = Vec::new();

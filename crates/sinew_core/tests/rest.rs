@@ -5,27 +5,14 @@
 //! kept from switching targets, P3 never settled: 192 m/s² RMS surface
 //! acceleration, edges stretched ×21, both muscles crumpled into shards.
 
+use sinew_core::SolverMethod;
 use sinew_core::analysis::{RunMetrics, Thresholds};
 use sinew_core::scene::builtin;
-use sinew_core::{ColorScope, SolverMethod};
 use std::path::Path;
 
 #[test]
 fn p3_at_rest_settles_and_keeps_its_shape_with_every_method() {
-    let methods = [
-        SolverMethod::Sequential,
-        SolverMethod::Colored {
-            scope: ColorScope::PerMuscle,
-        },
-        SolverMethod::Colored {
-            scope: ColorScope::Global,
-        },
-        SolverMethod::Jacobi { omega: 1.5 },
-        SolverMethod::Hybrid {
-            min_group: 32,
-            omega: 1.5,
-        },
-    ];
+    let methods = SolverMethod::EVERY;
     for method in methods {
         let mut scene = builtin("P3").unwrap();
         scene.settings.method = method;

@@ -11,7 +11,7 @@ use sinew_core::glam::Vec3;
 use sinew_core::mesh::primitives::MeshGenerator;
 use sinew_core::muscle::{MassMode, Muscle, MuscleParams};
 use sinew_core::scene::{MeshSource, MuscleSpec, Scene, builtin};
-use sinew_core::{ColorScope, Solver, SolverMethod};
+use sinew_core::{Solver, SolverMethod};
 use std::path::Path;
 
 /// P1's oval (held at both ends, 6 × 2.5 × 2.5 cm) under a closed skin
@@ -75,21 +75,6 @@ fn strain(skin: &Muscle) -> (f32, f32) {
             (lo.min(r), hi.max(r))
         })
 }
-
-const METHODS: [SolverMethod; 5] = [
-    SolverMethod::Sequential,
-    SolverMethod::Colored {
-        scope: ColorScope::PerMuscle,
-    },
-    SolverMethod::Colored {
-        scope: ColorScope::Global,
-    },
-    SolverMethod::Jacobi { omega: 1.5 },
-    SolverMethod::Hybrid {
-        min_group: 32,
-        omega: 1.5,
-    },
-];
 
 /// What the skin did in one phase: the largest change of its gap to the
 /// oval from its rest value, its smallest gap, and its edges' smallest and
@@ -192,7 +177,7 @@ fn a_skin_has_only_surface_distance_and_sliding_constraints() {
 
 #[test]
 fn a_skin_stays_on_a_contracting_muscle_with_every_method() {
-    for method in METHODS {
+    for method in SolverMethod::EVERY {
         let (bits, [rest, contracted, relaxed]) = run(method, 1);
         for (name, phase) in [("at rest", rest), ("relaxed", relaxed)] {
             assert!(

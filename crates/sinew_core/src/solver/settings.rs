@@ -44,6 +44,26 @@ pub enum SolverMethod {
     },
 }
 
+impl SolverMethod {
+    /// Every method, with the parameters the shipped scenes use (Jacobi and
+    /// Hybrid ω 1.5, Hybrid's smallest Gauss–Seidel group 32): what tests
+    /// that hold for every method iterate over.
+    pub const EVERY: [SolverMethod; 5] = [
+        SolverMethod::Sequential,
+        SolverMethod::Colored {
+            scope: ColorScope::PerMuscle,
+        },
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        },
+        SolverMethod::Jacobi { omega: 1.5 },
+        SolverMethod::Hybrid {
+            min_group: 32,
+            omega: 1.5,
+        },
+    ];
+}
+
 /// What a colouring spans.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ColorScope {
