@@ -2,7 +2,7 @@
 //! the muscle's own constraints from a [`MuscleDesc`].
 
 use super::*;
-use crate::constraints::{ActivationRest, VolumeConstraint};
+use crate::constraints::{ActivationRest, DistanceBatch, VolumeConstraint};
 use fiber::fiber_field;
 
 impl Muscle {
@@ -165,48 +165,23 @@ impl Muscle {
         let p = &self.params;
         let rest = &self.rest;
         let n = self.surface_count;
+        let fibers = &self.fibers;
         // Fiber: one per polygon edge, activation-driven.
         c.fiber.compliance = p.compliance.fiber;
-        let mut act = ActivationRest::default();
-        for &[a, b] in &self.mesh.edges {
-            c.fiber
-                .push(a, b, rest[a as usize].distance(rest[b as usize]));
-            act.edge.push(rest[a as usize] - rest[b as usize]);
-            act.fiber.push(ActivationRest::edge_fiber(
-                self.fibers[a as usize],
-                self.fibers[b as usize],
-            ));
-        }
-        c.fiber.activation = Some(act);
+        let edges = self.mesh.edges.iter().copied();
+        c.fiber.activation = Some(push_at_rest(&mut c.fiber, edges, rest, fibers));
         // Branch and Internal.
         c.branch.compliance = p.compliance.branch;
         c.internal.compliance = p.compliance.internal;
         if p.internal.enabled && !self.structure.points.is_empty() {
-            let mut act = ActivationRest::default();
-            for &[a, b] in &self.structure.branches {
-                let (ia, ib) = (n as u32 + a, n as u32 + b);
-                c.branch
-                    .push(ia, ib, rest[ia as usize].distance(rest[ib as usize]));
-                act.edge.push(rest[ia as usize] - rest[ib as usize]);
-                act.fiber.push(ActivationRest::edge_fiber(
-                    self.fibers[ia as usize],
-                    self.fibers[ib as usize],
-                ));
-            }
+            let first = n as u32;
+            let branches = (self.structure.branches.iter()).map(|&[a, b]| [first + a, first + b]);
+            let act = push_at_rest(&mut c.branch, branches, rest, fibers);
             if p.branch_follows_activation {
                 c.branch.activation = Some(act);
             }
-            let mut act = ActivationRest::default();
-            for v in 0..n as u32 {
-                let ip = n as u32 + self.structure.vertex_point[v as usize];
-                c.internal
-                    .push(v, ip, rest[v as usize].distance(rest[ip as usize]));
-                act.edge.push(rest[v as usize] - rest[ip as usize]);
-                act.fiber.push(ActivationRest::edge_fiber(
-                    self.fibers[v as usize],
-                    self.fibers[ip as usize],
-                ));
-            }
+            let links = (0..first).map(|v| [v, first + self.structure.vertex_point[v as usize]]);
+            let act = push_at_rest(&mut c.internal, links, rest, fibers);
             if p.internal_follows_activation {
                 c.internal.activation = Some(act);
             }
@@ -227,4 +202,26 @@ impl Muscle {
             });
         }
     }
+}
+
+/// Pushes a distance constraint between each pair of particles onto
+/// `batch` at its rest length, and returns what its activation-driven rest
+/// length needs (the rest edge and the fibre across it, per constraint).
+fn push_at_rest(
+    batch: &mut DistanceBatch,
+    pairs: impl Iterator<Item = [u32; 2]>,
+    rest: &[Vec3],
+    fibers: &[Vec3],
+) -> ActivationRest {
+    let mut act = ActivationRest::default();
+    for [a, b] in pairs {
+        let (pa, pb) = (rest[a as usize], rest[b as usize]);
+        batch.push(a, b, pa.distance(pb));
+        act.edge.push(pa - pb);
+        act.fiber.push(ActivationRest::edge_fiber(
+            fibers[a as usize],
+            fibers[b as usize],
+        ));
+    }
+    act
 }

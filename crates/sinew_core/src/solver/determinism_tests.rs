@@ -204,19 +204,10 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
                 .collect();
         bits
     };
-    for method in [
-        SolverMethod::Colored {
-            scope: ColorScope::PerMuscle,
-        },
-        SolverMethod::Colored {
-            scope: ColorScope::Global,
-        },
-        SolverMethod::Jacobi { omega: 1.5 },
-        SolverMethod::Hybrid {
-            min_group: 32,
-            omega: 1.5,
-        },
-    ] {
+    let split = SolverMethod::EVERY
+        .into_iter()
+        .filter(|&m| m != SolverMethod::Sequential);
+    for method in split {
         assert_eq!(run(method, 1), run(method, 4), "{method:?}");
     }
 }

@@ -99,16 +99,18 @@ pub struct Parallelism {
 }
 
 impl Parallelism {
-    /// The split for a scene of `constraints` constraints and `particles`
-    /// particles, given whether the driver has worker threads:
-    /// [`SolverSettings::parallel_threshold`] keeps small scenes on the
+    /// The split for a scene of `muscles`, given whether the driver has
+    /// worker threads: [`SolverSettings::parallel_threshold`] (compared with
+    /// the scene's constraint and particle counts) keeps small scenes on the
     /// calling thread.
-    pub fn decide(
+    pub fn decide<'a>(
         settings: &SolverSettings,
         threads: bool,
-        constraints: usize,
-        particles: usize,
+        muscles: impl IntoIterator<Item = &'a Muscle>,
     ) -> Self {
+        let (constraints, particles) = muscles
+            .into_iter()
+            .fold((0, 0), |(c, p), m| (c + m.counts().total(), p + m.x.len()));
         Self {
             muscles: threads && constraints >= settings.parallel_threshold,
             particles: threads && particles >= settings.parallel_threshold,

@@ -72,12 +72,7 @@ impl Solver {
         }
         self.pool.sync(self.valid.threads);
         self.prepare();
-        let (constraints, particles) = self
-            .muscles
-            .iter()
-            .fold((0, 0), |(c, p), m| (c + m.counts().total(), p + m.x.len()));
-        let parallelism =
-            Parallelism::decide(&self.valid, self.pool.is_some(), constraints, particles);
+        let parallelism = Parallelism::decide(&self.valid, self.pool.is_some(), &self.muscles);
         FrameParams::new(&self.valid, self.frame, parallelism)
     }
 
