@@ -70,12 +70,20 @@ pub struct BoneTrack(pub TransformTrack);
 /// A skeleton (joint tree with keyframed joint values, from a scene) that
 /// poses bones: each `(entity, body)` pair gets the body's world frame.
 #[derive(Component, Clone, Debug)]
+#[require(SkeletonFrames)]
 pub struct SkeletonDriver {
     /// The compiled skeleton.
     pub rig: SkeletonRig,
     /// Bone entities and the skeleton body each follows.
     pub bones: Vec<(Entity, usize)>,
 }
+
+/// Every body frame of a [`SkeletonDriver`]'s skeleton at the end of the
+/// coming step: posed once a frame when its bones are animated, and read
+/// back as those bones' exact poses (a `Transform` round trip would round
+/// them).
+#[derive(Component, Clone, Debug, Default)]
+pub struct SkeletonFrames(pub Vec<Affine3A>);
 
 /// Fibre rest-length formula, as [`CoreFiberMode`] but reflectable.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]

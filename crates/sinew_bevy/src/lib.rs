@@ -93,7 +93,7 @@ pub mod prelude {
     pub use crate::components::{
         ActivationCurve, AttachmentBones, BonePose, BoneTarget, BoneTrack, Compliance, FiberMode,
         Muscle, MuscleSnapshot, MuscleState, MuscleTargets, SensorRig, SinewBone, SkeletonDriver,
-        SolverWorkspace,
+        SkeletonFrames, SolverWorkspace,
     };
     #[cfg(feature = "debug")]
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};

@@ -56,18 +56,18 @@ pub(crate) fn animate_bone_tracks(
     }
 }
 
-/// Poses skeleton-driven bones for the end time of the coming step (their
-/// transforms, for rendering and children; the solver reads the skeleton's
-/// own frames, [`read_bones`]).
+/// Poses every skeleton for the end time of the coming step: its frames
+/// ([`SkeletonFrames`], which the solver reads, [`read_bones`]) and its
+/// bones' transforms (for rendering and children).
 pub(crate) fn animate_skeletons(
     ctx: Res<StepContext>,
-    skeletons: Query<&SkeletonDriver>,
+    mut skeletons: Query<(&SkeletonDriver, &mut SkeletonFrames)>,
     mut transforms: Query<&mut Transform>,
-    mut scratch: Local<(Vec<f32>, Vec<Affine3A>)>,
+    mut values: Local<Vec<f32>>,
 ) {
-    let (values, world) = &mut *scratch;
-    for driver in &skeletons {
-        driver.rig.pose_at(ctx.end_time, values, world);
+    for (driver, mut frames) in &mut skeletons {
+        let world = &mut frames.0;
+        driver.rig.pose_at(ctx.end_time, &mut values, world);
         for &(entity, body) in &driver.bones {
             if let (Ok(mut t), Some(pose)) = (transforms.get_mut(entity), world.get(body)) {
                 *t = Transform::from_matrix(Mat4::from(*pose));
@@ -91,13 +91,13 @@ pub(crate) fn place_new_targets(
 }
 
 /// Reads every bone's pose after transform propagation; a skeleton's bones
-/// take its body frames exactly (a transform round trip would round them).
+/// take the frames [`animate_skeletons`] posed exactly (a transform round
+/// trip would round them).
 pub(crate) fn read_bones(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
     mut bones: Query<(&GlobalTransform, &mut BonePose)>,
-    skeletons: Query<&SkeletonDriver>,
-    mut scratch: Local<(Vec<f32>, Vec<Affine3A>)>,
+    skeletons: Query<(&SkeletonDriver, &SkeletonFrames)>,
 ) {
     let mut clock = Stopwatch::new(ctx.settings.timers);
     for (global, mut pose) in &mut bones {
@@ -110,11 +110,9 @@ pub(crate) fn read_bones(
         }
         pose.current = now;
     }
-    let (values, world) = &mut *scratch;
-    for driver in &skeletons {
-        driver.rig.pose_at(ctx.end_time, values, world);
+    for (driver, frames) in &skeletons {
         for &(entity, body) in &driver.bones {
-            if let (Ok((_, mut pose)), Some(frame)) = (bones.get_mut(entity), world.get(body)) {
+            if let (Ok((_, mut pose)), Some(frame)) = (bones.get_mut(entity), frames.0.get(body)) {
                 pose.current = *frame;
             }
         }
@@ -286,14 +284,10 @@ pub(crate) fn plan_step(
     let mut watch = Stopwatch::new(ctx.settings.timers);
     let workers = &mut *workers;
     workers.pool.sync(ctx.settings.threads);
-    let (constraints, particles) = muscles.iter().fold((0, 0), |(c, p), (s, _)| {
-        (c + s.muscle.counts().total(), p + s.muscle.x.len())
-    });
     let parallelism = Parallelism::decide(
         &ctx.settings,
         workers.pool.is_some(),
-        constraints,
-        particles,
+        muscles.iter().map(|(s, _)| &s.muscle),
     );
     let frame = FrameParams::new(&ctx.settings, clock.frame, parallelism);
     ctx.iterations = frame.iterations_for(muscles.iter().map(|(s, _)| &s.muscle));

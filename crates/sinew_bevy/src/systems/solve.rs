@@ -191,32 +191,23 @@ pub(crate) fn iterate(
     });
     surfaces.with(table_surfaces, |surfaces| {
         let timings = &mut timings.step;
-        if !missing.get() {
-            pairs.with(muscles.iter_mut().map(pair), |muscles| {
-                passes::iterate_all(
-                    pool,
-                    muscles,
-                    &*surfaces,
-                    &ctx.iteration,
-                    &mut watch,
-                    timings,
-                );
-            });
-            return;
-        }
         // A target was despawned during the step: the muscles that read it
         // run without contacts until it is dropped from their targets.
-        let gone: &TargetSurface = gone;
-        let lost: Vec<usize> = (0..surfaces.len())
-            .filter(|&t| std::ptr::eq(surfaces[t], gone))
-            .collect();
-        let saved: Vec<_> = muscles
-            .iter_mut()
-            .map(|(_, mut ws)| {
-                let reads_lost = ws.0.target_ids.iter().any(|t| lost.contains(t));
-                reads_lost.then(|| std::mem::take(&mut ws.0.target_ids))
-            })
-            .collect();
+        let saved: Vec<_> = if missing.get() {
+            let gone: &TargetSurface = gone;
+            let lost: Vec<usize> = (0..surfaces.len())
+                .filter(|&t| std::ptr::eq(surfaces[t], gone))
+                .collect();
+            muscles
+                .iter_mut()
+                .map(|(_, mut ws)| {
+                    let reads_lost = ws.0.target_ids.iter().any(|t| lost.contains(t));
+                    reads_lost.then(|| std::mem::take(&mut ws.0.target_ids))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         pairs.with(muscles.iter_mut().map(pair), |muscles| {
             passes::iterate_all(
                 pool,
