@@ -86,21 +86,21 @@ fn draw(
                 (&k.branch, Color::srgb(1.0, 1.0, 0.3)),
             ] {
                 for (&a, &b) in batch.a.iter().zip(&batch.b) {
-                    gizmos.line(p[a as usize], p[b as usize], color);
+                    gizmos.line(p[a.index()], p[b.index()], color);
                 }
             }
         }
         if v.attachments {
             for batch in [&k.attach, &k.branch_attach] {
                 for (&i, goal) in batch.particle.iter().zip(&batch.goal) {
-                    gizmos.line(p[i as usize], *goal, Color::srgb(0.1, 1.0, 0.3));
+                    gizmos.line(p[i.index()], *goal, Color::srgb(0.1, 1.0, 0.3));
                     gizmos.sphere(*goal, 0.0015, Color::srgb(0.1, 1.0, 0.3));
                 }
             }
         }
         if v.sliding {
             for (&i, point) in k.sliding.particle.iter().zip(&k.sliding.point) {
-                gizmos.line(p[i as usize], *point, Color::srgb(0.2, 0.8, 1.0));
+                gizmos.line(p[i.index()], *point, Color::srgb(0.2, 0.8, 1.0));
             }
         }
         for (on, batch, color) in [
@@ -110,7 +110,7 @@ fn draw(
             if on {
                 for (i, (&particle, goal)) in batch.particle.iter().zip(&batch.goal).enumerate() {
                     if batch.compliance[i].is_finite() {
-                        gizmos.line(p[particle as usize], *goal, color);
+                        gizmos.line(p[particle.index()], *goal, color);
                     }
                 }
             }
@@ -125,7 +125,7 @@ fn draw(
             };
             let mut edge = |c, color| {
                 if let [Some(a), Some(b)] = particles_of(m, c) {
-                    gizmos.line(p[a as usize], p[b as usize], color);
+                    gizmos.line(p[a.index()], p[b.index()], color);
                 }
             };
             for color in 0..plan.color_count() {
@@ -151,7 +151,7 @@ fn mean_edge(m: &sinew_core::muscle::Muscle) -> f32 {
     }
     f.a.iter()
         .zip(&f.b)
-        .map(|(&a, &b)| m.x[a as usize].distance(m.x[b as usize]))
+        .map(|(&a, &b)| m.x[a.index()].distance(m.x[b.index()]))
         .sum::<f32>()
         / f.len() as f32
 }

@@ -194,14 +194,14 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
     for (m, ws) in solver.muscles().iter().zip(solver.workspaces()) {
         let c = &m.constraints.sliding;
         for i in 0..c.len() {
-            let chosen = c.target[i] as usize;
+            let chosen = c.target[i].index();
             if chosen >= c.targets || c.rigid[chosen] {
                 continue;
             }
-            let v = c.particle[i] as usize;
+            let v = c.particle[i].index();
             for bone in (0..c.targets).filter(|&s| c.rigid[s] && c.rest_outside[i * c.targets + s])
             {
-                let surface = &targets[ws.target_ids[bone]];
+                let surface = &targets[ws.target_ids[bone].index()];
                 let hit = surface.closest(m.p[v], None).unwrap();
                 let (mut m, mut ws) = (m.clone(), ws.clone());
                 m.p[v] = hit.point - 2e-3 * hit.normal;
@@ -212,7 +212,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
                 closest_data(&mut m, &mut ws, targets, keep);
                 // It now follows a bone: this one, or where two bones meet
                 // one its walk finds it deeper in.
-                let now = m.constraints.sliding.target[i] as usize;
+                let now = m.constraints.sliding.target[i].index();
                 assert!(
                     now < c.targets && c.rigid[now],
                     "{}: vertex {v} inside bone slot {bone} follows slot {now} (chose {chosen})",

@@ -6,6 +6,7 @@ use super::{SolverWorkers, StepContext, ValidSettings, pair, surface_of};
 use crate::components::*;
 use crate::settings::{SinewClock, SinewSettings, SinewTimings};
 use bevy::prelude::*;
+use sinew_core::constraints::TargetId;
 use sinew_core::glam::Affine3A;
 use sinew_core::solver::{FrameParams, Parallelism, Stopwatch, passes, pipeline};
 
@@ -228,7 +229,7 @@ pub(crate) fn link_muscles(
         let ids = targets.0.iter().map(|&e| {
             *slots.entry(e).or_insert_with(|| {
                 table.push(e);
-                table.len() - 1
+                TargetId::new(table.len() - 1)
             })
         });
         let ws = &mut ws.0;

@@ -18,6 +18,7 @@ use bevy::ecs::entity::EntityHashMap;
 use bevy::prelude::*;
 use sinew_core::SolverSettings;
 use sinew_core::closest::{TargetSource, TargetSurface};
+use sinew_core::constraints::TargetId;
 use sinew_core::muscle::Muscle as CoreMuscle;
 use sinew_core::solver::{
     BorrowBuffer, FrameParams, IterationParams, MusclePair, Parallelism, SubstepParams, WorkerPool,
@@ -92,7 +93,7 @@ pub(crate) struct SolverWorkers {
     /// [`sinew_core::solver::MuscleWorkspace::target_ids`] index it.
     table: Vec<Entity>,
     /// Each table entity's index.
-    slots: EntityHashMap<usize>,
+    slots: EntityHashMap<TargetId>,
     /// Stands in the table for a target despawned during the step (its
     /// muscles run the rest of the step without contacts; it is dropped
     /// from their targets on the next one).

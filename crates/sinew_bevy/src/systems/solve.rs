@@ -9,6 +9,7 @@ use crate::{SinewIterationSchedule, SinewSubstepSchedule};
 use bevy::prelude::*;
 use sinew_core::animation::interpolate_rigid;
 use sinew_core::closest::TargetSurface;
+use sinew_core::constraints::TargetId;
 use sinew_core::glam::Affine3A;
 use sinew_core::solver::{Stopwatch, passes, pipeline};
 use std::cell::Cell;
@@ -195,8 +196,9 @@ pub(crate) fn iterate(
         // run without contacts until it is dropped from their targets.
         let saved: Vec<_> = if missing.get() {
             let gone: &TargetSurface = gone;
-            let lost: Vec<usize> = (0..surfaces.len())
+            let lost: Vec<TargetId> = (0..surfaces.len())
                 .filter(|&t| std::ptr::eq(surfaces[t], gone))
+                .map(TargetId::new)
                 .collect();
             muscles
                 .iter_mut()

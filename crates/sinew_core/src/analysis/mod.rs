@@ -104,7 +104,7 @@ pub fn attachment_errors(solver: &Solver) -> impl Iterator<Item = f32> + '_ {
             let pose = a
                 .bone
                 .map_or(glam::Affine3A::IDENTITY, |b| solver.bones()[b].transform);
-            m.x[a.vertex as usize].distance(pose.transform_point3(a.vertex_local))
+            m.x[a.vertex.index()].distance(pose.transform_point3(a.vertex_local))
         })
     })
 }

@@ -115,8 +115,8 @@ impl ShapeReference {
             .map(|v| {
                 let r = rest[v];
                 let nearest = m.attachments.iter().min_by(|a, b| {
-                    let da = rest[a.vertex as usize].distance_squared(r);
-                    let db = rest[b.vertex as usize].distance_squared(r);
+                    let da = rest[a.vertex.index()].distance_squared(r);
+                    let db = rest[b.vertex.index()].distance_squared(r);
                     da.total_cmp(&db)
                 });
                 let bone = nearest.and_then(|a| a.bone);

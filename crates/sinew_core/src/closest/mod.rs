@@ -37,6 +37,7 @@
 //! [`TargetSurface::refit`] refits only once the slack exceeds a quarter of
 //! the mean edge length.
 
+use crate::constraints::TargetId;
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 
 mod bvh;
@@ -92,19 +93,19 @@ pub struct SurfaceFrame {
 /// Where a muscle's `target_ids` are looked up: the solver's table of every
 /// target, or a driver's slice of references in the muscle's own order.
 pub trait TargetSet {
-    /// The target with index `id`.
-    fn target(&self, id: usize) -> &TargetSurface;
+    /// The target `id`.
+    fn target(&self, id: TargetId) -> &TargetSurface;
 }
 
 impl TargetSet for [TargetSurface] {
-    fn target(&self, id: usize) -> &TargetSurface {
-        &self[id]
+    fn target(&self, id: TargetId) -> &TargetSurface {
+        &self[id.index()]
     }
 }
 
 impl TargetSet for [&TargetSurface] {
-    fn target(&self, id: usize) -> &TargetSurface {
-        self[id]
+    fn target(&self, id: TargetId) -> &TargetSurface {
+        self[id.index()]
     }
 }
 

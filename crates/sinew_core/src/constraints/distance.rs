@@ -27,7 +27,7 @@
 //! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
 //! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
-use super::{ConstraintBatch, Correction, Gathered, delta_lambda};
+use super::{ConstraintBatch, Correction, Gathered, ParticleId, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -113,9 +113,9 @@ impl ActivationScale {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DistanceBatch {
     /// First particle.
-    pub a: Vec<u32>,
+    pub a: Vec<ParticleId>,
     /// Second particle.
-    pub b: Vec<u32>,
+    pub b: Vec<ParticleId>,
     /// Current rest length (updated once per frame from activation).
     pub rest: Vec<f32>,
     /// Accumulated multipliers (reset every frame / substep).
@@ -138,7 +138,7 @@ impl DistanceBatch {
     }
 
     /// Adds a constraint with the given fixed rest length.
-    pub fn push(&mut self, a: u32, b: u32, rest: f32) {
+    pub fn push(&mut self, a: ParticleId, b: ParticleId, rest: f32) {
         self.a.push(a);
         self.b.push(b);
         self.rest.push(rest);
@@ -156,7 +156,7 @@ impl DistanceBatch {
 
     /// Constraint value `C` for constraint `i`.
     pub fn value(&self, i: usize, p: &[Vec3]) -> f32 {
-        (p[self.a[i] as usize] - p[self.b[i] as usize]).length() - self.rest[i]
+        (p[self.a[i].index()] - p[self.b[i].index()]).length() - self.rest[i]
     }
 }
 
@@ -179,7 +179,7 @@ impl ConstraintBatch for DistanceBatch {
         2
     }
 
-    fn index_arrays(&self) -> [&[u32]; 2] {
+    fn index_arrays(&self) -> [&[ParticleId]; 2] {
         [&self.a, &self.b]
     }
 
@@ -188,7 +188,7 @@ impl ConstraintBatch for DistanceBatch {
     }
 
     #[inline(always)]
-    fn particles(&self, i: usize) -> [u32; 2] {
+    fn particles(&self, i: usize) -> [ParticleId; 2] {
         [self.a[i], self.b[i]]
     }
 

@@ -28,11 +28,13 @@
 //! - Romeo, Monteagudo, Sánchez-Quirós, *Muscle Simulation with XPBD*, CEIG 2018.
 
 mod distance;
+mod ids;
 mod point;
 mod sliding;
 mod volume;
 
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
+pub use ids::{ParticleId, TargetId, TargetSlot, TriangleId};
 pub use point::PointBatch;
 pub use sliding::{SlidingBatch, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams};
@@ -174,9 +176,9 @@ impl Correction {
 
     /// Writes the new positions of `particles` (slot order) into `p`.
     #[inline(always)]
-    pub fn write(&self, particles: [u32; 2], p: &mut [Vec3]) {
+    pub fn write(&self, particles: [ParticleId; 2], p: &mut [Vec3]) {
         for (&to, &k) in self.to[..self.count as usize].iter().zip(&particles) {
-            p[k as usize] = to;
+            p[k.index()] = to;
         }
     }
 }
@@ -198,8 +200,8 @@ pub struct Gathered {
 impl Gathered {
     /// The particles `particles` of positions `p` and inverse masses `w`.
     #[inline(always)]
-    pub fn from_slices(particles: [u32; 2], p: &[Vec3], w: &[f32]) -> Self {
-        let [a, b] = particles.map(|k| k as usize);
+    pub fn from_slices(particles: [ParticleId; 2], p: &[Vec3], w: &[f32]) -> Self {
+        let [a, b] = particles.map(ParticleId::index);
         Self {
             at: [p[a], p[b]],
             w: [w[a], w[b]],
@@ -215,7 +217,7 @@ pub trait ConstraintBatch {
 
     /// The particles constraint `i` moves: `[a, b]` for a pair, `[p, p]`
     /// for a single particle (targets are read-only).
-    fn particles(&self, i: usize) -> [u32; 2];
+    fn particles(&self, i: usize) -> [ParticleId; 2];
 
     /// Particles each constraint moves: 1 (a particle and a target) or 2.
     fn particles_per_constraint(&self) -> usize;
@@ -223,7 +225,7 @@ pub trait ConstraintBatch {
     /// The batch's particle-index arrays (the second empty for a
     /// one-particle type): what a colour plan compares to see whether it
     /// still fits.
-    fn index_arrays(&self) -> [&[u32]; 2];
+    fn index_arrays(&self) -> [&[ParticleId]; 2];
 
     /// Whether constraint `i` is switched off (a connection of weight 0:
     /// non-finite compliance); every method skips it. Default: never.

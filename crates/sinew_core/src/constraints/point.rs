@@ -8,14 +8,14 @@
 //! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
 //! ```
 
-use super::{ConstraintBatch, Correction, Gathered, delta_lambda};
+use super::{ConstraintBatch, Correction, Gathered, ParticleId, delta_lambda};
 use glam::Vec3;
 
 /// A batch of single-particle constraints towards goal points.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PointBatch {
     /// Constrained particle.
-    pub particle: Vec<u32>,
+    pub particle: Vec<ParticleId>,
     /// Current goal point (world), refreshed before projection.
     pub goal: Vec<Vec3>,
     /// Rest distance to the goal. Units: m.
@@ -42,7 +42,7 @@ impl PointBatch {
     }
 
     /// Adds a constraint.
-    pub fn push(&mut self, particle: u32, goal: Vec3, rest: f32, compliance: f32) {
+    pub fn push(&mut self, particle: ParticleId, goal: Vec3, rest: f32, compliance: f32) {
         self.particle.push(particle);
         self.goal.push(goal);
         self.rest.push(rest);
@@ -53,7 +53,7 @@ impl PointBatch {
 
     /// Constraint value `C` for constraint `i`.
     pub fn value(&self, i: usize, p: &[Vec3]) -> f32 {
-        (p[self.particle[i] as usize] - self.goal[i]).length() - self.rest[i]
+        (p[self.particle[i].index()] - self.goal[i]).length() - self.rest[i]
     }
 }
 
@@ -76,7 +76,7 @@ impl ConstraintBatch for PointBatch {
         1
     }
 
-    fn index_arrays(&self) -> [&[u32]; 2] {
+    fn index_arrays(&self) -> [&[ParticleId]; 2] {
         [&self.particle, &[]]
     }
 
@@ -89,7 +89,7 @@ impl ConstraintBatch for PointBatch {
     }
 
     #[inline(always)]
-    fn particles(&self, i: usize) -> [u32; 2] {
+    fn particles(&self, i: usize) -> [ParticleId; 2] {
         [self.particle[i]; 2]
     }
 

@@ -13,7 +13,7 @@
 //! non-compliant position projection (bones do not give way), then the
 //! compliant gap equality acts as usual.
 
-use super::{ConstraintBatch, Correction, Gathered, delta_lambda};
+use super::{ConstraintBatch, Correction, Gathered, ParticleId, TargetSlot, delta_lambda};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -31,7 +31,7 @@ pub enum SlidingMode {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SlidingBatch {
     /// Constrained vertex.
-    pub particle: Vec<u32>,
+    pub particle: Vec<ParticleId>,
     /// Compliance per constraint (type compliance / painted weight); infinite = off.
     pub compliance: Vec<f32>,
     /// Rest gap per (constraint, target): `rest_gap[i * targets + t]`;
@@ -51,8 +51,8 @@ pub struct SlidingBatch {
     pub barycentric: Vec<Vec3>,
     /// Unit normal of `triangle`'s plane when `point` was found.
     pub plane: Vec<Vec3>,
-    /// Chosen target slot this iteration (`u32::MAX` = none within reach).
-    pub target: Vec<u32>,
+    /// Chosen target slot this iteration ([`TargetSlot::NONE`]: none within reach).
+    pub target: Vec<TargetSlot>,
     /// Accumulated multipliers.
     pub lambda: Vec<f32>,
     /// Equality or contact.
@@ -83,11 +83,8 @@ impl SlidingBatch {
 
     /// Value and gradient of constraint `i` at `p` (None when inactive).
     pub fn value_and_gradient(&self, i: usize, p: Vec3) -> Option<(f32, Vec3)> {
-        let t = self.target[i];
-        if t == u32::MAX {
-            return None;
-        }
-        let slot = i * self.targets + t as usize;
+        let t = self.target[i].get()?;
+        let slot = i * self.targets + t;
         let (c, n) = (self.point[i], self.normal[i]);
         let gap = self.rest_gap[slot];
         if !gap.is_finite() {
@@ -126,7 +123,7 @@ impl ConstraintBatch for SlidingBatch {
         1
     }
 
-    fn index_arrays(&self) -> [&[u32]; 2] {
+    fn index_arrays(&self) -> [&[ParticleId]; 2] {
         [&self.particle, &[]]
     }
 
@@ -139,7 +136,7 @@ impl ConstraintBatch for SlidingBatch {
     }
 
     #[inline(always)]
-    fn particles(&self, i: usize) -> [u32; 2] {
+    fn particles(&self, i: usize) -> [ParticleId; 2] {
         [self.particle[i]; 2]
     }
 
@@ -159,9 +156,11 @@ impl ConstraintBatch for SlidingBatch {
             return None;
         }
         let mut x = start;
-        let t = self.target[i];
-        if t != u32::MAX && w > 0.0 && self.rigid.get(t as usize) == Some(&true) {
-            let slot = i * self.targets + t as usize;
+        if let Some(t) = self.target[i].get()
+            && w > 0.0
+            && self.rigid.get(t) == Some(&true)
+        {
+            let slot = i * self.targets + t;
             let s = self.normal[i].dot(x - self.point[i]);
             if s < 0.0 && self.rest_outside[slot] {
                 x -= self.normal[i] * s;

@@ -2,7 +2,7 @@
 //! the muscle's own constraints from a [`MuscleDesc`].
 
 use super::*;
-use crate::constraints::{ActivationRest, DistanceBatch, VolumeConstraint};
+use crate::constraints::{ActivationRest, DistanceBatch, ParticleId, VolumeConstraint};
 use fiber::fiber_field;
 
 impl Muscle {
@@ -216,7 +216,7 @@ fn push_at_rest(
     let mut act = ActivationRest::default();
     for [a, b] in pairs {
         let (pa, pb) = (rest[a as usize], rest[b as usize]);
-        batch.push(a, b, pa.distance(pb));
+        batch.push(ParticleId::new(a), ParticleId::new(b), pa.distance(pb));
         act.edge.push(pa - pb);
         act.fiber.push(ActivationRest::edge_fiber(
             fibers[a as usize],

@@ -17,7 +17,7 @@ pub use fiber::{fiber_field, longest_axis};
 pub use internal::{InternalStructure, InternalStructureParams};
 pub use params::{Compliances, ConnectionWeights, MassMode, MuscleParams};
 
-use crate::constraints::{ActivationScale, ConstraintCounts};
+use crate::constraints::{ActivationScale, ConstraintCounts, ParticleId, TargetSlot};
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use glam::{Affine3A, Vec3};
@@ -96,9 +96,9 @@ pub struct Attachment {
     /// Bone index, `None` for world.
     pub bone: Option<usize>,
     /// Held surface vertex.
-    pub vertex: u32,
-    /// Held internal point (particle index), if the structure exists.
-    pub internal_particle: Option<u32>,
+    pub vertex: ParticleId,
+    /// Held internal point, if the structure exists.
+    pub internal_particle: Option<ParticleId>,
     /// Vertex rest position in the bone frame.
     pub vertex_local: Vec3,
     /// Internal point rest position in the bone frame.
@@ -109,7 +109,7 @@ pub struct Attachment {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfaceAnchor {
     /// Target slot in the muscle's target list.
-    pub target: u32,
+    pub target: TargetSlot,
     /// Triangle of the target.
     pub triangle: u32,
     /// Barycentric coordinates.
@@ -199,9 +199,10 @@ impl Muscle {
         let pv = self.x[vertex as usize];
         let internal_particle = (!self.structure.points.is_empty()).then(|| {
             let k = nearest_vertex(&self.structure.points, pv);
-            self.surface_count as u32 + k
+            ParticleId::new(self.surface_count as u32 + k)
         });
-        let pi = internal_particle.map(|i| self.x[i as usize]).unwrap_or(pv);
+        let pi = internal_particle.map(|i| self.x[i.index()]).unwrap_or(pv);
+        let vertex = ParticleId::new(vertex);
         let att = Attachment {
             bone,
             vertex,
@@ -277,20 +278,20 @@ impl Muscle {
     /// constraints do after it in the iteration.
     pub fn pin_attachments(&mut self) {
         for a in &self.attachments {
-            let v = a.vertex as usize;
+            let v = a.vertex.index();
             self.w[v] = self.free_w[v];
             if let Some(ip) = a.internal_particle {
-                self.w[ip as usize] = self.free_w[ip as usize];
+                self.w[ip.index()] = self.free_w[ip.index()];
             }
         }
         for a in &self.attachments {
             if self.params.compliance.attach == 0.0 {
-                self.w[a.vertex as usize] = 0.0;
+                self.w[a.vertex.index()] = 0.0;
             }
             if let Some(ip) = a.internal_particle
                 && self.params.compliance.branch_attach == 0.0
             {
-                self.w[ip as usize] = 0.0;
+                self.w[ip.index()] = 0.0;
             }
         }
     }
@@ -299,12 +300,12 @@ impl Muscle {
     pub fn place_pinned(&mut self) {
         let mut k = 0;
         for (i, a) in self.attachments.iter().enumerate() {
-            if self.w[a.vertex as usize] == 0.0 {
-                self.p[a.vertex as usize] = self.constraints.attach.goal[i];
+            if self.w[a.vertex.index()] == 0.0 {
+                self.p[a.vertex.index()] = self.constraints.attach.goal[i];
             }
             if let Some(ip) = a.internal_particle {
-                if self.w[ip as usize] == 0.0 {
-                    self.p[ip as usize] = self.constraints.branch_attach.goal[k];
+                if self.w[ip.index()] == 0.0 {
+                    self.p[ip.index()] = self.constraints.branch_attach.goal[k];
                 }
                 k += 1;
             }
@@ -336,7 +337,7 @@ impl Muscle {
         let comp = self.params.compliance;
         let weighted = |alpha: f32, w: f32| if w > 0.0 { alpha / w } else { f32::INFINITY };
         for i in 0..self.constraints.sliding.len() {
-            let v = self.constraints.sliding.particle[i] as usize;
+            let v = self.constraints.sliding.particle[i].index();
             let (s, o, h) = self.connection_weights(v);
             let c = &self.constraints;
             let on = |connected: Option<bool>, weight: f32| {

@@ -9,6 +9,7 @@
 use super::params::ClosestSchedule;
 use super::workspace::MuscleWorkspace;
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
+use crate::constraints::{ParticleId, TargetId, TargetSlot};
 use crate::muscle::Muscle;
 use glam::{Vec3, Vec4};
 
@@ -51,7 +52,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     // Disabled instances (weight 0: infinite compliance) need no goal.
     for (i, a) in c.soft_anchor.iter().enumerate() {
         if c.soft.compliance[i].is_finite() {
-            let t = targets.target(ws.target_ids[a.target as usize]);
+            let t = targets.target(ws.target_ids[a.target.index()]);
             if moved(t) {
                 c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
                 c.soft.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
@@ -60,7 +61,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     }
     for (i, a) in c.hard_anchor.iter().enumerate() {
         if c.hard.compliance[i].is_finite() {
-            let t = targets.target(ws.target_ids[a.target as usize]);
+            let t = targets.target(ws.target_ids[a.target.index()]);
             if moved(t) {
                 c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
                 c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
@@ -72,13 +73,13 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
 /// A run of Sliding constraints' closest data: the batch's slices for the
 /// run, and its warm cells (`targets` per constraint).
 struct SlidingRun<'a> {
-    particle: &'a [u32],
+    particle: &'a [ParticleId],
     connected: &'a [bool],
     rest_gap: &'a [f32],
     point: &'a mut [Vec3],
     target_w: &'a mut [f32],
     normal: &'a mut [Vec3],
-    target: &'a mut [u32],
+    target: &'a mut [TargetSlot],
     triangle: &'a mut [u32],
     barycentric: &'a mut [Vec3],
     plane: &'a mut [Vec3],
@@ -194,7 +195,7 @@ impl Claim {
 /// What the Sliding part of closest data reads.
 struct SlidingInput<'a, T: ?Sized> {
     p: &'a [Vec3],
-    target_ids: &'a [usize],
+    target_ids: &'a [TargetId],
     targets: &'a T,
     search: ClosestSchedule,
     /// The muscle's contact reach: a target farther than this at rest is
@@ -223,9 +224,9 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             if !connected[i] {
                 continue;
             }
-            let v = particle[i] as usize;
+            let v = particle[i].index();
             let q = self.p[v];
-            let first = target[i] as usize;
+            let first = target[i].get().unwrap_or(usize::MAX);
             let choose = search.chooses(v) || first >= nt;
             // Later iterations project the vertex onto the feature (face
             // plane, edge or corner) of the triangle the walk found: the
@@ -246,7 +247,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 .into_iter()
                 .chain((0..nt).filter(move |&s| (choose || search.first_of_frame) && s != first));
             let full = search.wants(v);
-            let mut best: Option<(Claim, ClosestHit, u32)> = None;
+            let mut best: Option<(Claim, ClosestHit, usize)> = None;
             for slot in order {
                 let gap = rest_gap[i * nt + slot];
                 let surface = self.targets.target(self.target_ids[slot]);
@@ -295,12 +296,12 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                     .as_ref()
                     .is_none_or(|(b, _, _)| claim.beats(b, self.reach))
                 {
-                    best = Some((claim, hit, slot as u32));
+                    best = Some((claim, hit, slot));
                 }
             }
             match best {
                 Some((_, hit, slot)) => {
-                    let surface = self.targets.target(self.target_ids[slot as usize]);
+                    let surface = self.targets.target(self.target_ids[slot]);
                     point[i] = hit.point;
                     target_w[i] = surface.point_inverse_mass(hit.triangle, hit.barycentric);
                     normal[i] = hit.normal;
@@ -311,9 +312,9 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                     if search.feature_contacts {
                         plane[i] = surface.face_normal(hit.triangle);
                     }
-                    target[i] = slot;
+                    target[i] = TargetSlot::new(slot);
                 }
-                None => target[i] = u32::MAX,
+                None => target[i] = TargetSlot::NONE,
             }
         }
     }
@@ -342,7 +343,7 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
         return;
     }
     for i in 0..c.len() {
-        let v = c.particle[i] as usize;
+        let v = c.particle[i].index();
         if m.w[v] == 0.0 {
             continue;
         }

@@ -25,7 +25,7 @@
 
 use super::jacobi::JacobiState;
 use super::sweep::{PlannedConstraint, Segment, SweepPlan};
-use crate::constraints::{ConstraintCounts, ConstraintKind};
+use crate::constraints::{ConstraintCounts, ConstraintKind, ParticleId};
 use crate::muscle::Muscle;
 
 pub use super::constraint_ref::{
@@ -83,7 +83,7 @@ fn greedy_units(m: &Muscle, units: &[Vec<ConstraintRef>]) -> Vec<Vec<usize>> {
     for (u, unit) in units.iter().enumerate() {
         touched.clear();
         touched.extend(unit.iter().flat_map(|&c| particles_of(m, c)).flatten());
-        let free = |mask: &Vec<bool>| touched.iter().all(|&p| !mask[p as usize]);
+        let free = |mask: &Vec<bool>| touched.iter().all(|&p| !mask[p.index()]);
         let c = match used.iter().position(free) {
             Some(c) => c,
             None => {
@@ -93,7 +93,7 @@ fn greedy_units(m: &Muscle, units: &[Vec<ConstraintRef>]) -> Vec<Vec<usize>> {
             }
         };
         for &p in &touched {
-            used[c][p as usize] = true;
+            used[c][p.index()] = true;
         }
         colors[c].push(u);
     }
@@ -142,7 +142,7 @@ pub struct ColorPlan {
     /// The particle indices of every constraint when the plan was built,
     /// batch by batch ([`index_arrays`]): what makes a colour's units
     /// disjoint, compared whole (a memory compare) by [`ColorPlan::fits`].
-    tied: Vec<u32>,
+    tied: Vec<ParticleId>,
     /// Which constraints were switched off when the plan was built
     /// ([`off_flags`], batch by batch): the sweeps skip them, and
     /// [`ColorPlan::fits`] compares.
@@ -195,7 +195,7 @@ impl ColorPlan {
     /// Units are coloured greedily in that class order (vertex units, stars
     /// with the most links first, then the edges in creation order).
     pub fn clustered(m: &Muscle, order: &[ConstraintKind]) -> Self {
-        let surface = m.surface_count as u32;
+        let surface = ParticleId::from_index(m.surface_count);
         let mut vertex_units: Vec<Vec<ConstraintRef>> = vec![Vec::new(); m.x.len()];
         let mut stars: Vec<Vec<ConstraintRef>> = vec![Vec::new(); m.x.len()];
         let mut edges = Vec::new();
@@ -203,9 +203,9 @@ impl ColorPlan {
             match (c.kind, particles_of(m, c)) {
                 (ConstraintKind::Internal, [Some(a), Some(b)]) => {
                     let center = if a >= surface { a } else { b };
-                    stars[center as usize].push(c);
+                    stars[center.index()].push(c);
                 }
-                (_, [Some(p), None]) => vertex_units[p as usize].push(c),
+                (_, [Some(p), None]) => vertex_units[p.index()].push(c),
                 _ => edges.push(vec![c]),
             }
         }
@@ -294,7 +294,7 @@ impl ColorPlan {
                 for &c in &unit {
                     mark(c);
                     for p in particles_of(m, c).into_iter().flatten() {
-                        let o = &mut owner[p as usize];
+                        let o = &mut owner[p.index()];
                         assert!(
                             o.1 != ci as u32 || o.0 == u,
                             "colour {ci} moves particle {p} from two units"

@@ -3,7 +3,9 @@
 //! ([`crate::muscle::MuscleConstraints`]): the particles it moves, whether
 //! it is switched off, its projection and the commit of that projection.
 
-use crate::constraints::{BatchFn, BatchFnMut, ConstraintBatch, ConstraintKind, Correction};
+use crate::constraints::{
+    BatchFn, BatchFnMut, ConstraintBatch, ConstraintKind, Correction, ParticleId,
+};
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
 
@@ -17,7 +19,7 @@ pub struct ConstraintRef {
 }
 
 /// The particles constraint `c` of `m` moves (targets are read-only).
-pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<u32>; 2] {
+pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<ParticleId>; 2] {
     let Some(batch) = m.constraints.batch(c.kind) else {
         return [None, None];
     };
@@ -30,7 +32,7 @@ pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<u32>; 2] {
 
 /// Every particle-index array of `m`'s batches (Volume, which moves every
 /// particle, apart), in table order.
-pub(super) fn index_arrays(m: &Muscle) -> impl Iterator<Item = &[u32]> {
+pub(super) fn index_arrays(m: &Muscle) -> impl Iterator<Item = &[ParticleId]> {
     let k = &m.constraints;
     MuscleConstraints::BATCHED
         .iter()
@@ -70,7 +72,7 @@ pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<Constra
 ///
 /// # Panics
 /// For Volume, which is solved apart.
-pub(super) fn batch_particles(m: &Muscle, c: ConstraintRef) -> [u32; 2] {
+pub(super) fn batch_particles(m: &Muscle, c: ConstraintRef) -> [ParticleId; 2] {
     m.constraints
         .batch(c.kind)
         .expect("Volume is solved apart")

@@ -2,7 +2,7 @@
 //! colour plans are sound.
 
 use super::*;
-use crate::constraints::ConstraintKind;
+use crate::constraints::{ConstraintKind, ParticleId};
 use crate::scene::builtin;
 use glam::Vec3;
 
@@ -225,7 +225,9 @@ fn a_plan_is_rebuilt_when_a_constraint_moves_other_particles() {
     // Retie the first fibre to another particle: the units of its colour may
     // now share it, so the plan must not be reused.
     let f = &mut m.constraints.fiber;
-    let other = (0..m.surface_count as u32).find(|&p| p != f.a[0] && p != f.b[0]);
+    let other = (0..m.surface_count as u32)
+        .map(ParticleId::new)
+        .find(|&p| p != f.a[0] && p != f.b[0]);
     f.b[0] = other.unwrap();
     assert!(!s.workspaces()[0].plan().unwrap().fits(&s.muscles()[0]));
     s.step();

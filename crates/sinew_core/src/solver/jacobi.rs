@@ -55,7 +55,7 @@ impl JacobiState {
         let mut count = vec![0u32; n + 1];
         for c in &jacobi {
             for p in particles_of(m, *c).iter().flatten() {
-                count[*p as usize + 1] += 1;
+                count[p.index() + 1] += 1;
             }
         }
         for i in 0..n {
@@ -67,7 +67,7 @@ impl JacobiState {
         for (j, c) in jacobi.iter().enumerate() {
             for (slot, p) in particles_of(m, *c).iter().enumerate() {
                 if let Some(p) = p {
-                    let at = &mut fill[*p as usize];
+                    let at = &mut fill[p.index()];
                     entries[*at as usize] = (j as u32, slot as u8);
                     *at += 1;
                 }

@@ -26,11 +26,12 @@
 
 use super::workspace::MuscleWorkspace;
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource};
+use crate::constraints::{ParticleId, TargetSlot};
 use crate::muscle::{Muscle, SurfaceAnchor};
 use glam::Vec3;
 
 /// A target slot and the closest point on it.
-type Candidate = (u32, ClosestHit);
+type Candidate = (usize, ClosestHit);
 
 /// Creates one Sliding, Soft and Hard constraint per surface vertex of `m`
 /// against its targets (`ws.target_ids` index `targets`), from the current
@@ -95,7 +96,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
                 .rest_gap
                 .push(if touching { h.distance } else { f32::INFINITY });
             c.sliding.rest_outside.push(!h.is_inside());
-            let candidate = Some((slot as u32, h));
+            let candidate = Some((slot, h));
             let nearer =
                 |best: &Option<Candidate>| best.is_none_or(|(_, b)| h.distance < b.distance);
             if nearer(&nearest) {
@@ -112,9 +113,9 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
             continue;
         };
         let (slot, hit) = contact.unwrap_or(nearest);
-        let target = surfaces[slot as usize];
+        let target = surfaces[slot];
         let s = &mut c.sliding;
-        s.particle.push(v as u32);
+        s.particle.push(ParticleId::from_index(v));
         s.connected.push(contact.is_some());
         s.compliance.push(0.0);
         s.point.push(hit.point);
@@ -124,23 +125,24 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         s.triangle.push(hit.triangle);
         s.barycentric.push(hit.barycentric);
         s.plane.push(target.face_normal(hit.triangle));
-        s.target.push(slot);
+        s.target.push(TargetSlot::new(slot));
         s.lambda.push(0.0);
         let (slot, hit) = tie.unwrap_or(nearest);
-        let target = surfaces[slot as usize];
+        let target = surfaces[slot];
         let anchor = SurfaceAnchor {
-            target: slot,
+            target: TargetSlot::new(slot),
             triangle: hit.triangle,
             barycentric: hit.barycentric,
             local: Vec3::ZERO,
             connected: tie.is_some(),
         };
         let target_w = target.point_inverse_mass(hit.triangle, hit.barycentric);
-        c.soft.push(v as u32, hit.point, hit.distance, 0.0);
+        c.soft
+            .push(ParticleId::from_index(v), hit.point, hit.distance, 0.0);
         c.soft_anchor.push(anchor);
         let frame = target.frame_at(hit.triangle, hit.barycentric);
         let local = Vec3::from(frame.basis.transpose() * glam::Vec3A::from(q - frame.origin));
-        c.hard.push(v as u32, q, 0.0, 0.0);
+        c.hard.push(ParticleId::from_index(v), q, 0.0, 0.0);
         c.hard_anchor.push(SurfaceAnchor { local, ..anchor });
         if let (Some(s), Some(h)) = (c.soft.target_w.last_mut(), c.hard.target_w.last_mut()) {
             (*s, *h) = (target_w, target_w);
@@ -149,7 +151,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     // rest_gap / rest_outside were pushed for every vertex; keep them aligned
     // with the constraints (vertices without any hit have no constraint).
     if c.sliding.len() != n {
-        let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v as usize).collect();
+        let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v.index()).collect();
         let gap = std::mem::take(&mut c.sliding.rest_gap);
         let out = std::mem::take(&mut c.sliding.rest_outside);
         for v in keep {
@@ -162,7 +164,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         }
         let all = std::mem::take(&mut warm);
         for &v in &c.sliding.particle {
-            warm.extend_from_slice(&all[v as usize * nt..(v as usize + 1) * nt]);
+            warm.extend_from_slice(&all[v.index() * nt..(v.index() + 1) * nt]);
         }
     }
     m.relink_weights();

@@ -46,6 +46,7 @@ pub use workspace::MuscleWorkspace;
 
 use crate::animation::{Curve, TransformTrack};
 use crate::closest::{TargetSource, TargetSurface};
+use crate::constraints::TargetId;
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use crate::muscle::{Muscle, MuscleDesc, TargetRef};
@@ -464,6 +465,7 @@ impl Solver {
                     TargetRef::Bone(b) => self.bones[b].target.expect("checked when added"),
                     TargetRef::Muscle(o) => muscle_target[o],
                 })
+                .map(TargetId::new)
                 .collect();
             pipeline::link(m, ws, self.targets.as_slice());
         }
@@ -471,7 +473,7 @@ impl Solver {
         let mut used: Vec<usize> = self
             .workspaces
             .iter()
-            .flat_map(|ws| ws.target_ids.iter().copied())
+            .flat_map(|ws| ws.target_ids.iter().map(|t| t.index()))
             .collect();
         used.sort_unstable();
         used.dedup();

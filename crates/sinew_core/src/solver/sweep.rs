@@ -31,7 +31,7 @@
 
 use crate::constraints::{
     BATCHED_KINDS, BatchFn, ConstraintBatch, ConstraintCounts, ConstraintKind, Gathered,
-    MuscleLambdas,
+    MuscleLambdas, ParticleId,
 };
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
@@ -44,7 +44,7 @@ pub(super) struct PlannedConstraint {
     /// Index in its type's batch.
     pub index: u32,
     /// The particles it moves, `[p, p]` for one.
-    pub particles: [u32; 2],
+    pub particles: [ParticleId; 2],
 }
 
 /// A run of a chunk's constraints of one type: `ops[start..end]`.
@@ -143,7 +143,7 @@ impl SweepPlan {
                         );
                         *l = mark;
                         for p in op.particles {
-                            let o = &mut owner[p as usize];
+                            let o = &mut owner[p.index()];
                             assert!(
                                 o.0 != mark.0 || o.1 == mark.1,
                                 "colour {c}: particle {p} in two chunks"
@@ -325,7 +325,7 @@ impl<'a> MuscleSweep<'a> {
         let lambda = &self.lambdas[kind as usize];
         for op in ops {
             let i = op.index as usize;
-            let [a, b] = op.particles.map(|k| k as usize);
+            let [a, b] = op.particles.map(|k| k.index());
             // SAFETY: the chunk being run is the only one of its colour that
             // touches these particles and this multiplier (`SweepPlan::check`),
             // and the colours run one after the other.
@@ -341,7 +341,7 @@ impl<'a> MuscleSweep<'a> {
                 unsafe {
                     lambda.write(i, l + c.dlambda);
                     for (&to, &k) in c.to[..c.count as usize].iter().zip(&op.particles) {
-                        self.p.write(k as usize, to);
+                        self.p.write(k.index(), to);
                     }
                 }
             }
@@ -400,7 +400,10 @@ mod tests {
     }
 
     fn fiber(index: u32, particles: [u32; 2]) -> PlannedConstraint {
-        PlannedConstraint { index, particles }
+        PlannedConstraint {
+            index,
+            particles: particles.map(ParticleId::new),
+        }
     }
 
     /// Two chunks of one colour, one op each.

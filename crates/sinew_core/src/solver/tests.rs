@@ -95,7 +95,7 @@ fn value(m: &Muscle, kind: K) -> (f64, f64) {
         K::Hard => (c.hard.value(0, p) as f64, 0.01),
         K::Soft => (c.soft.value(0, p) as f64, c.soft.rest[0].max(0.01) as f64),
         K::Sliding => {
-            let v = c.sliding.particle[0] as usize;
+            let v = c.sliding.particle[0].index();
             let (cv, _) = c.sliding.value_and_gradient(0, p[v]).unwrap();
             (cv as f64, 0.01)
         }
@@ -153,7 +153,7 @@ fn gradients_match_central_finite_differences() {
     };
     // Distance type (Fiber; Internal and Branch share the kernel).
     let f = &m.constraints.fiber;
-    let (a, b, rest) = (f.a[0] as usize, f.b[0] as usize, f.rest[0]);
+    let (a, b, rest) = (f.a[0].index(), f.b[0].index(), f.rest[0]);
     let pb = m.p[b];
     let n = (m.p[a] - pb).normalize();
     check(
@@ -164,7 +164,7 @@ fn gradients_match_central_finite_differences() {
     );
     // Point type (Attach; BranchAttach, Soft, Hard share it).
     let s = &m.constraints.soft;
-    let (v, goal, rest) = (s.particle[0] as usize, s.goal[0], s.rest[0]);
+    let (v, goal, rest) = (s.particle[0].index(), s.goal[0], s.rest[0]);
     check(
         (m.p[v] - goal).normalize(),
         &|x| (x.as_dvec3() - goal.as_dvec3()).length() - rest as f64,
@@ -173,7 +173,7 @@ fn gradients_match_central_finite_differences() {
     );
     // Sliding.
     let sl = m.constraints.sliding.clone();
-    let v = sl.particle[0] as usize;
+    let v = sl.particle[0].index();
     let (_, g) = sl.value_and_gradient(0, m.p[v]).unwrap();
     check(
         g,
@@ -440,7 +440,7 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
             closest_data(&mut m, &mut ws, targets, first);
             for (i, &v) in m.constraints.sliding.particle.iter().enumerate() {
                 let n = m.constraints.sliding.normal[i];
-                m.p[v as usize] += 1e-3 * n.any_orthonormal_vector();
+                m.p[v.index()] += 1e-3 * n.any_orthonormal_vector();
             }
             let (mut exact, mut exact_ws) = (m.clone(), ws.clone());
             closest_data(&mut exact, &mut exact_ws, targets, first);

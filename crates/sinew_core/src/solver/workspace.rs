@@ -18,6 +18,7 @@ use super::coloring::ColorPlan;
 use super::jacobi::JacobiState;
 use super::momentum::RigidMomentum;
 use crate::closest::NO_TRIANGLE;
+use crate::constraints::TargetId;
 use crate::muscle::Muscle;
 use glam::Vec4;
 
@@ -27,7 +28,7 @@ pub struct MuscleWorkspace {
     /// The driver's index of each of the muscle's targets, in the muscle's
     /// target order (the solver's table index; `0..k` for a driver that
     /// passes the targets themselves).
-    pub target_ids: Vec<usize>,
+    pub target_ids: Vec<TargetId>,
     /// The last closest triangle per (Sliding constraint, target slot),
     /// `warm[i * targets + t]`, or [`NO_TRIANGLE`]: where the next walk of
     /// that target starts (4 bytes a cell keeps the full body's table in

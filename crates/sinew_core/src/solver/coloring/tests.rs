@@ -87,7 +87,7 @@ fn group_count_is_bounded_below_by_the_busiest_particle() {
         let mut degree = vec![0usize; m.x.len()];
         for &c in &refs {
             for p in particles_of(&m, c).into_iter().flatten() {
-                degree[p as usize] += 1;
+                degree[p.index()] += 1;
             }
         }
         let max_degree = *degree.iter().max().unwrap();
@@ -99,7 +99,7 @@ fn group_count_is_bounded_below_by_the_busiest_particle() {
                 particles_of(&m, c)
                     .into_iter()
                     .flatten()
-                    .map(|p| degree[p as usize] - 1)
+                    .map(|p| degree[p.index()] - 1)
                     .sum::<usize>()
             })
             .max()
