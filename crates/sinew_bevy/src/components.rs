@@ -1,6 +1,7 @@
 //! Components: bones and their target meshes, muscles with their parameters
 //! and built state, activation drivers.
 
+pub use crate::compliance::Compliance;
 use bevy::prelude::*;
 use sinew_core::animation::{Curve, TransformTrack};
 use sinew_core::closest::TargetSurface;
@@ -109,68 +110,6 @@ impl From<CoreFiberMode> for FiberMode {
         match m {
             CoreFiberMode::PaperExact => FiberMode::PaperExact,
             CoreFiberMode::RotationInvariant => FiberMode::RotationInvariant,
-        }
-    }
-}
-
-/// Compliance `α = 1/k` per constraint type (as [`Compliances`], reflectable).
-/// `0` is rigid; larger is softer. Units: m/N (Volume: m³/N).
-#[derive(Clone, Copy, Debug, PartialEq, Reflect)]
-pub struct Compliance {
-    /// Fiber (surface edges).
-    pub fiber: f32,
-    /// Volume.
-    pub volume: f32,
-    /// Internal (vertex ↔ internal point).
-    pub internal: f32,
-    /// Branch (internal ↔ internal).
-    pub branch: f32,
-    /// Attach (vertex ↔ bone point).
-    pub attach: f32,
-    /// BranchAttach (internal point ↔ bone point).
-    pub branch_attach: f32,
-    /// Sliding on targets.
-    pub sliding: f32,
-    /// Soft target link.
-    pub soft: f32,
-    /// Hard target link.
-    pub hard: f32,
-}
-
-impl Default for Compliance {
-    fn default() -> Self {
-        Compliances::default().into()
-    }
-}
-
-impl From<Compliances> for Compliance {
-    fn from(c: Compliances) -> Self {
-        Self {
-            fiber: c.fiber,
-            volume: c.volume,
-            internal: c.internal,
-            branch: c.branch,
-            attach: c.attach,
-            branch_attach: c.branch_attach,
-            sliding: c.sliding,
-            soft: c.soft,
-            hard: c.hard,
-        }
-    }
-}
-
-impl From<Compliance> for Compliances {
-    fn from(c: Compliance) -> Self {
-        Self {
-            fiber: c.fiber,
-            volume: c.volume,
-            internal: c.internal,
-            branch: c.branch,
-            attach: c.attach,
-            branch_attach: c.branch_attach,
-            sliding: c.sliding,
-            soft: c.soft,
-            hard: c.hard,
         }
     }
 }

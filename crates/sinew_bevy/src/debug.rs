@@ -7,7 +7,7 @@
 
 use crate::components::{MuscleState, SolverWorkspace};
 use bevy::prelude::*;
-use sinew_core::constraints::ConstraintKind;
+use sinew_core::muscle::ConstraintKind;
 use sinew_core::solver::coloring::{ColorPlan, PlanKind, particles_of};
 use std::collections::HashMap;
 

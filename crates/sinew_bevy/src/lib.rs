@@ -68,6 +68,7 @@
 //! Without features the plug-in runs headless with `MinimalPlugins`.
 
 pub mod build;
+mod compliance;
 pub mod components;
 #[cfg(feature = "debug")]
 pub mod debug;

@@ -1,7 +1,7 @@
 //! Global settings, the simulation clock and per-block timings (resources).
 
 use bevy::prelude::*;
-use sinew_core::constraints::ConstraintKind;
+use sinew_core::muscle::ConstraintKind;
 use sinew_core::{ColorScope, SolverMethod, SolverSettings, StepTimings, SweepSchedule};
 use std::time::Duration;
 

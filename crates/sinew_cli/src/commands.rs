@@ -1,7 +1,7 @@
 //! `info`, `validate`, `bake` and `scene`.
 
-use sinew_core::constraints::{ConstraintCounts, ConstraintKind};
 use sinew_core::mesh::{LoadOptions, append_obj, load_mesh};
+use sinew_core::muscle::{ConstraintCounts, ConstraintKind};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
 use sinew_core::solver::coloring::{ColorGroups, ColorPlan, PlanKind};
 use sinew_core::{SceneError, Solver};

@@ -2,10 +2,10 @@
 
 use crate::commands::write_stdout;
 use sinew_core::Solver;
-use sinew_core::constraints::ConstraintCounts;
 use sinew_core::import::builder::SweepOptions;
 use sinew_core::import::mjcf::MjcfModel;
 use sinew_core::import::{ImportOptions, ImportRecipe, Imported, import_model};
+use sinew_core::muscle::ConstraintCounts;
 use sinew_core::solver::coloring::ColorGroups;
 use std::error::Error;
 use std::fmt::Write as _;

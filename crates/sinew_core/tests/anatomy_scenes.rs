@@ -143,7 +143,7 @@ fn t7_is_the_full_body_in_one_scene() {
 /// colouring needs more (24 here, 65 in the thesis' biceps).
 #[test]
 fn global_colouring_of_the_arm_needs_at_most_16_sweeps() {
-    use sinew_core::constraints::ConstraintKind;
+    use sinew_core::muscle::ConstraintKind;
     use sinew_core::solver::coloring::{ColorPlan, PlanKind};
     let (_, mut solver) = load("t5");
     solver.prepare();

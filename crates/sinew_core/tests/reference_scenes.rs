@@ -2,7 +2,7 @@
 //! and the committed RON scenes against the generators.
 
 use sinew_core::Solver;
-use sinew_core::constraints::{ConstraintCounts, ConstraintKind as K};
+use sinew_core::muscle::{ConstraintCounts, ConstraintKind as K};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
 use std::path::Path;
 

@@ -6,9 +6,9 @@
 //! sags, contracts and bulges.
 
 use sinew_core::closest::closest_point_triangle;
-use sinew_core::constraints::ConstraintKind;
 use sinew_core::glam::Vec3;
 use sinew_core::mesh::primitives::MeshGenerator;
+use sinew_core::muscle::ConstraintKind;
 use sinew_core::muscle::{MassMode, Muscle, MuscleParams};
 use sinew_core::scene::{MeshSource, MuscleSpec, Scene, builtin};
 use sinew_core::{Solver, SolverMethod};

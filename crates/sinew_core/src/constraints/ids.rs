@@ -108,25 +108,6 @@ impl TargetId {
     }
 }
 
-/// A triangle of a target's surface: an index into its triangle list.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[repr(transparent)]
-pub struct TriangleId(u32);
-
-impl TriangleId {
-    /// Triangle `index`.
-    #[inline(always)]
-    pub fn new(index: usize) -> Self {
-        Self(u32::try_from(index).expect("triangle index fits in u32"))
-    }
-
-    /// Its index into the surface's triangle list.
-    #[inline(always)]
-    pub const fn index(self) -> usize {
-        self.0 as usize
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,7 +120,6 @@ mod tests {
         assert_eq!(TargetSlot::NONE.get(), None);
         assert_eq!(TargetSlot::default(), TargetSlot::NONE);
         assert_eq!(TargetId::new(5).index(), 5);
-        assert_eq!(TriangleId::new(9).index(), 9);
         assert_eq!(std::mem::size_of::<ParticleId>(), 4);
         assert_eq!(std::mem::size_of::<TargetSlot>(), 4);
     }

@@ -34,111 +34,12 @@ mod sliding;
 mod volume;
 
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
-pub use ids::{ParticleId, TargetId, TargetSlot, TriangleId};
+pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;
 pub use sliding::{SlidingBatch, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams};
 
 use glam::Vec3;
-use serde::{Deserialize, Serialize};
-
-/// The constraint types, in the canonical projection order (SPEC §4.3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-pub enum ConstraintKind {
-    /// Surface vertex ↔ attachment point.
-    Attach,
-    /// Internal point ↔ attachment point.
-    BranchAttach,
-    /// Vertex ↔ its rest transform on a target triangle.
-    Hard,
-    /// Vertex ↔ its rest point on a target triangle (a spring).
-    Soft,
-    /// Vertex ↔ closest point on the closest target (gap kept, free to slide).
-    Sliding,
-    /// Internal point ↔ internal point.
-    Branch,
-    /// Surface vertex ↔ its internal point.
-    Internal,
-    /// One per polygon edge; rest length shrinks along the fibres with activation.
-    Fiber,
-    /// One per muscle; enclosed volume with activation-driven gain.
-    Volume,
-}
-
-impl ConstraintKind {
-    /// All kinds in the canonical projection order.
-    pub const CANONICAL_ORDER: [ConstraintKind; 9] = [
-        Self::Attach,
-        Self::BranchAttach,
-        Self::Hard,
-        Self::Soft,
-        Self::Sliding,
-        Self::Branch,
-        Self::Internal,
-        Self::Fiber,
-        Self::Volume,
-    ];
-
-    /// The layout of the thesis' Tables 5.1–5.4.
-    pub const TABLE_ORDER: [ConstraintKind; 9] = [
-        Self::Fiber,
-        Self::Attach,
-        Self::BranchAttach,
-        Self::Sliding,
-        Self::Soft,
-        Self::Hard,
-        Self::Internal,
-        Self::Branch,
-        Self::Volume,
-    ];
-
-    /// Short name as printed in the thesis' tables.
-    pub fn label(self) -> &'static str {
-        match self {
-            Self::Attach => "Attach",
-            Self::BranchAttach => "BrAttach",
-            Self::Hard => "Hard",
-            Self::Soft => "Soft",
-            Self::Sliding => "Sliding",
-            Self::Branch => "Branch",
-            Self::Internal => "Internal",
-            Self::Fiber => "Fiber",
-            Self::Volume => "Volume",
-        }
-    }
-}
-
-/// Number of batched constraint types (every type but Volume, which is
-/// last in [`ConstraintKind`]).
-pub(crate) const BATCHED_KINDS: usize = ConstraintKind::CANONICAL_ORDER.len() - 1;
-
-/// The multipliers of a muscle's batched constraint types, taken out for a
-/// parallel sweep, indexed by [`ConstraintKind`] (Volume apart).
-pub(crate) type MuscleLambdas = [Vec<f32>; BATCHED_KINDS];
-
-/// Constraint counts per type.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ConstraintCounts(pub [usize; 9]);
-
-impl ConstraintCounts {
-    /// Count of one type.
-    pub fn get(&self, kind: ConstraintKind) -> usize {
-        self.0[kind as usize]
-    }
-
-    /// Sum over all types.
-    pub fn total(&self) -> usize {
-        self.0.iter().sum()
-    }
-}
-
-impl std::ops::AddAssign for ConstraintCounts {
-    fn add_assign(&mut self, rhs: Self) {
-        for (a, b) in self.0.iter_mut().zip(rhs.0) {
-            *a += b;
-        }
-    }
-}
 
 /// The outcome of projecting one constraint, computed without writing: the
 /// multiplier increment and the new positions of the (at most two)

@@ -160,35 +160,13 @@ impl Muscle {
         Ok(muscle)
     }
 
+    /// Makes the constraints the table builds (Fiber, Branch, Internal)
+    /// and Volume.
     fn build_own_constraints(&mut self, closed: bool) {
-        let c = &mut self.constraints;
-        let p = &self.params;
-        let rest = &self.rest;
-        let n = self.surface_count;
-        let fibers = &self.fibers;
-        // Fiber: one per polygon edge, activation-driven.
-        c.fiber.compliance = p.compliance.fiber;
-        let edges = self.mesh.edges.iter().copied();
-        c.fiber.activation = Some(push_at_rest(&mut c.fiber, edges, rest, fibers));
-        // Branch and Internal.
-        c.branch.compliance = p.compliance.branch;
-        c.internal.compliance = p.compliance.internal;
-        if p.internal.enabled && !self.structure.points.is_empty() {
-            let first = n as u32;
-            let branches = (self.structure.branches.iter()).map(|&[a, b]| [first + a, first + b]);
-            let act = push_at_rest(&mut c.branch, branches, rest, fibers);
-            if p.branch_follows_activation {
-                c.branch.activation = Some(act);
-            }
-            let links = (0..first).map(|v| [v, first + self.structure.vertex_point[v as usize]]);
-            let act = push_at_rest(&mut c.internal, links, rest, fibers);
-            if p.internal_follows_activation {
-                c.internal.activation = Some(act);
-            }
-        }
-        // Volume.
+        self.build_table_constraints();
+        let (p, n) = (&self.params, self.surface_count);
         if p.volume.enabled && closed {
-            c.volume = Some(VolumeConstraint {
+            self.constraints.volume = Some(VolumeConstraint {
                 polygon_offsets: self.mesh.polygon_offsets.clone(),
                 polygon_indices: self.mesh.polygon_indices.clone(),
                 surface_count: n,
@@ -202,6 +180,56 @@ impl Muscle {
             });
         }
     }
+}
+
+/// The Fiber constraints of `m`: one per polygon edge of its surface, at
+/// the edge's rest length, shortened along the fibres with activation.
+pub fn fiber_edges(m: &Muscle) -> DistanceBatch {
+    let mut batch = DistanceBatch {
+        compliance: m.params.compliance.fiber,
+        ..Default::default()
+    };
+    let edges = m.mesh.edges.iter().copied();
+    batch.activation = Some(push_at_rest(&mut batch, edges, &m.rest, &m.fibers));
+    batch
+}
+
+/// The Branch constraints of `m`: one per branch of its internal
+/// structure (none without one), following activation when
+/// [`MuscleParams::branch_follows_activation`] is set.
+pub fn branch_links(m: &Muscle) -> DistanceBatch {
+    let mut batch = DistanceBatch {
+        compliance: m.params.compliance.branch,
+        ..Default::default()
+    };
+    if m.params.internal.enabled && !m.structure.points.is_empty() {
+        let first = m.surface_count as u32;
+        let branches = (m.structure.branches.iter()).map(|&[a, b]| [first + a, first + b]);
+        let act = push_at_rest(&mut batch, branches, &m.rest, &m.fibers);
+        if m.params.branch_follows_activation {
+            batch.activation = Some(act);
+        }
+    }
+    batch
+}
+
+/// The Internal constraints of `m`: each surface vertex to its internal
+/// point (none without an internal structure), following activation when
+/// [`MuscleParams::internal_follows_activation`] is set.
+pub fn internal_links(m: &Muscle) -> DistanceBatch {
+    let mut batch = DistanceBatch {
+        compliance: m.params.compliance.internal,
+        ..Default::default()
+    };
+    if m.params.internal.enabled && !m.structure.points.is_empty() {
+        let first = m.surface_count as u32;
+        let links = (0..first).map(|v| [v, first + m.structure.vertex_point[v as usize]]);
+        let act = push_at_rest(&mut batch, links, &m.rest, &m.fibers);
+        if m.params.internal_follows_activation {
+            batch.activation = Some(act);
+        }
+    }
+    batch
 }
 
 /// Pushes a distance constraint between each pair of particles onto

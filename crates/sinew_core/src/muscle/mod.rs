@@ -12,12 +12,14 @@ mod internal;
 mod mass;
 mod params;
 
-pub use constraints::MuscleConstraints;
+pub use build::{branch_links, fiber_edges, internal_links};
+pub(crate) use constraints::{BATCHED_KINDS, MuscleLambdas};
+pub use constraints::{Compliances, ConstraintCounts, ConstraintKind, MuscleConstraints};
 pub use fiber::{fiber_field, longest_axis};
 pub use internal::{InternalStructure, InternalStructureParams};
-pub use params::{Compliances, ConnectionWeights, MassMode, MuscleParams};
+pub use params::{ConnectionWeights, MassMode, MuscleParams};
 
-use crate::constraints::{ActivationScale, ConstraintCounts, ParticleId, TargetSlot};
+use crate::constraints::{ActivationScale, ParticleId, TargetSlot};
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use glam::{Affine3A, Vec3};

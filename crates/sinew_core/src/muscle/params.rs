@@ -1,70 +1,10 @@
 //! Per-muscle parameters. Every tunable states its unit and default.
 
 use super::internal::InternalStructureParams;
-use crate::constraints::{ConstraintKind, FiberMode, SlidingMode, VolumeParams};
+use super::{Compliances, ConstraintKind};
+use crate::constraints::{FiberMode, SlidingMode, VolumeParams};
 use crate::error::BuildError;
 use serde::{Deserialize, Serialize};
-
-/// Compliance `α = 1/k` per constraint type. `0` is rigid; larger is softer.
-///
-/// Units: m/N for the distance-type constraints, m³/N for Volume. Tuning hint:
-/// with millimetre-to-centimetre edges and gram-scale particles at 60 Hz,
-/// `1e-6` is stiff, `1e-4` is soft rubber and `1e-2` is jelly.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct Compliances {
-    /// Fiber (one per edge). Default: `2e-5`.
-    pub fiber: f32,
-    /// Volume. Default: `0` (rigid; the gain is reached exactly).
-    pub volume: f32,
-    /// Internal (vertex ↔ internal point). Default: `2e-4`.
-    pub internal: f32,
-    /// Branch (internal ↔ internal). Default: `2e-5`.
-    pub branch: f32,
-    /// Attach (vertex ↔ bone point). Default: `0` (rigid).
-    pub attach: f32,
-    /// BranchAttach (internal point ↔ bone point). Default: `0` (rigid).
-    pub branch_attach: f32,
-    /// Sliding, before the painted weight divides it. Default: `1e-3`.
-    pub sliding: f32,
-    /// Soft, before the painted weight. Default: `2e-3`.
-    pub soft: f32,
-    /// Hard, before the painted weight. Default: `5e-3`.
-    pub hard: f32,
-}
-
-impl Default for Compliances {
-    fn default() -> Self {
-        Self {
-            fiber: 2e-5,
-            volume: 0.0,
-            internal: 2e-4,
-            branch: 2e-5,
-            attach: 0.0,
-            branch_attach: 0.0,
-            sliding: 1e-3,
-            soft: 2e-3,
-            hard: 5e-3,
-        }
-    }
-}
-
-impl Compliances {
-    /// Compliance of one type.
-    pub fn get(&self, kind: ConstraintKind) -> f32 {
-        match kind {
-            ConstraintKind::Fiber => self.fiber,
-            ConstraintKind::Volume => self.volume,
-            ConstraintKind::Internal => self.internal,
-            ConstraintKind::Branch => self.branch,
-            ConstraintKind::Attach => self.attach,
-            ConstraintKind::BranchAttach => self.branch_attach,
-            ConstraintKind::Sliding => self.sliding,
-            ConstraintKind::Soft => self.soft,
-            ConstraintKind::Hard => self.hard,
-        }
-    }
-}
 
 /// Default weights of the three target connections, normalised per vertex
 /// when `normalize` is set (as AdonisFX does). A weight of 0 disables that

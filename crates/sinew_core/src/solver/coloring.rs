@@ -25,8 +25,9 @@
 
 use super::jacobi::JacobiState;
 use super::sweep::{PlannedConstraint, Segment, SweepPlan};
-use crate::constraints::{ConstraintCounts, ConstraintKind, ParticleId};
+use crate::constraints::ParticleId;
 use crate::muscle::Muscle;
+use crate::muscle::{ConstraintCounts, ConstraintKind};
 
 pub use super::constraint_ref::{
     ConstraintRef, commit, constraints_in_order, correction, particles_of,

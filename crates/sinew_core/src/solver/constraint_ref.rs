@@ -3,9 +3,8 @@
 //! ([`crate::muscle::MuscleConstraints`]): the particles it moves, whether
 //! it is switched off, its projection and the commit of that projection.
 
-use crate::constraints::{
-    BatchFn, BatchFnMut, ConstraintBatch, ConstraintKind, Correction, ParticleId,
-};
+use crate::constraints::{BatchFn, BatchFnMut, ConstraintBatch, Correction, ParticleId};
+use crate::muscle::ConstraintKind;
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
 

@@ -2,7 +2,8 @@
 //! colour plans are sound.
 
 use super::*;
-use crate::constraints::{ConstraintKind, ParticleId};
+use crate::constraints::ParticleId;
+use crate::muscle::ConstraintKind;
 use crate::scene::builtin;
 use glam::Vec3;
 

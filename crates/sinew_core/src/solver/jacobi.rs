@@ -17,7 +17,8 @@
 use super::coloring::{
     CHUNK_CONSTRAINTS, ConstraintRef, commit, constraints_in_order, correction, particles_of,
 };
-use crate::constraints::{ConstraintKind, Correction};
+use crate::constraints::Correction;
+use crate::muscle::ConstraintKind;
 use crate::muscle::Muscle;
 use glam::Vec3;
 

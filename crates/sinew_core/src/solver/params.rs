@@ -5,7 +5,7 @@
 //! validated settings, so a setting means the same in all of them.
 
 use super::settings::{SolverMethod, SolverSettings, SweepSchedule};
-use crate::constraints::ConstraintKind;
+use crate::muscle::ConstraintKind;
 use crate::muscle::Muscle;
 use glam::Vec3;
 
@@ -13,7 +13,7 @@ use glam::Vec3;
 /// constraint type).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ProjectionOrder {
-    kinds: [ConstraintKind; 9],
+    kinds: [ConstraintKind; ConstraintKind::COUNT],
     len: u8,
 }
 

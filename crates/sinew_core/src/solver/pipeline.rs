@@ -32,7 +32,8 @@ use super::sweep::{self, SweepPlan};
 use super::timings::TaskSplit;
 use super::workspace::MuscleWorkspace;
 use crate::closest::{TargetSet, TargetSurface};
-use crate::constraints::{BatchFnMut, ConstraintBatch, ConstraintKind};
+use crate::constraints::{BatchFnMut, ConstraintBatch};
+use crate::muscle::ConstraintKind;
 use crate::muscle::Muscle;
 use glam::{Affine3A, Vec3};
 

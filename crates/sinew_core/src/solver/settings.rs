@@ -1,8 +1,8 @@
 //! Solver settings: the projection method, the sweep schedule, and every
 //! global tunable with its unit and default.
 
-use crate::constraints::ConstraintKind;
 use crate::error::BuildError;
+use crate::muscle::ConstraintKind;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 

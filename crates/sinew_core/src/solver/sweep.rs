@@ -29,10 +29,8 @@
     reason = "threads write disjoint entries of one slice; the disjointness is checked here"
 )]
 
-use crate::constraints::{
-    BATCHED_KINDS, BatchFn, ConstraintBatch, ConstraintCounts, ConstraintKind, Gathered,
-    MuscleLambdas, ParticleId,
-};
+use crate::constraints::{BatchFn, ConstraintBatch, Gathered, ParticleId};
+use crate::muscle::{BATCHED_KINDS, ConstraintCounts, ConstraintKind, MuscleLambdas};
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
 use std::marker::PhantomData;

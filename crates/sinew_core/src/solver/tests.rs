@@ -4,8 +4,8 @@ use super::closest_data::closest_data;
 use super::pipeline::gauss_seidel as project;
 use super::*;
 use crate::animation::interpolate_rigid;
-use crate::constraints::ConstraintKind;
-use crate::constraints::ConstraintKind as K;
+use crate::muscle::ConstraintKind;
+use crate::muscle::ConstraintKind as K;
 use crate::scene::builtin;
 use glam::Vec3;
 
