@@ -135,7 +135,8 @@ pub struct Muscle {
     pub iterations: Option<u32>,
     /// Fibre rest-length formula.
     pub fiber_mode: FiberMode,
-    /// Velocity damping per frame, `[0, 1]`.
+    /// Velocity damping rate: the velocity keeps `e^(−c h)` over `h`
+    /// seconds. Units: 1/s. Range `[0, 1000]`.
     pub damping: f32,
 }
 
@@ -202,8 +203,8 @@ impl Muscle {
                 "must be > 0",
             ));
         }
-        if !(0.0..=1.0).contains(&self.damping) {
-            return Some(("damping", self.damping, "must be in [0, 1]"));
+        if !(0.0..=1000.0).contains(&self.damping) {
+            return Some(("damping", self.damping, "must be in [0, 1000] (1/s)"));
         }
         if self.iterations == Some(0) {
             return Some(("iterations", 0.0, "must be ≥ 1"));

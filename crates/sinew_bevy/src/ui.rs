@@ -247,7 +247,7 @@ fn muscle_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
         egui::Slider::new(&mut edit.activation_volume_gain, 0.5..=2.0)
             .text("overpressure R (gain at a = 1)"),
     );
-    ui.add(egui::Slider::new(&mut edit.damping, 0.0..=1.0).text("damping"));
+    ui.add(egui::Slider::new(&mut edit.damping, 0.0..=20.0).text("damping 1/s"));
     let mut own = edit.iterations.is_some();
     ui.horizontal(|ui| {
         ui.checkbox(&mut own, "own iterations");

@@ -20,7 +20,7 @@ fn sag(iterations: u32) -> f32 {
     m.params.compliance.internal = 2.0;
     m.params.compliance.branch = 0.2;
     m.params.compliance.volume = 2e-4;
-    m.params.damping = 0.1;
+    m.params.damping = 6.32; // 1/s: 10 % per 1/60 s frame
     let mut solver = scene.instantiate(Path::new(".")).unwrap();
     let rest_y = solver.muscles()[0]
         .surface_positions()

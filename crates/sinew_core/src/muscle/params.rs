@@ -98,7 +98,11 @@ pub struct MuscleParams {
     pub contact_reach: f32,
     /// Sliding behaviour. Default: [`SlidingMode::KeepGap`].
     pub sliding_mode: SlidingMode,
-    /// Velocity damping per frame, `v ← v (1 − k_d)`. Range `[0, 1]`. Default: `0.05`.
+    /// Velocity damping rate `c`: over a substep of `h` seconds the
+    /// velocity keeps `e^(−c h)`, the same decay per second at any frame
+    /// rate or substep count (`3.08` keeps 95 % per 1/60 s, what `0.05`
+    /// per frame was at 60 Hz). Units: 1/s. Range `[0, 1000]`. Default:
+    /// `3.08`.
     pub damping: f32,
     /// Mass assignment. Default: density 1060 kg/m³.
     pub mass: MassMode,
@@ -124,7 +128,7 @@ impl Default for MuscleParams {
             weights: ConnectionWeights::default(),
             contact_reach: 0.003,
             sliding_mode: SlidingMode::default(),
-            damping: 0.05,
+            damping: 3.08,
             mass: MassMode::default(),
             internal: InternalStructureParams::default(),
             fiber_smoothing: 3,
@@ -195,7 +199,7 @@ impl MuscleParams {
             ),
             ("rest_activation", self.rest_activation, 0.0, 1.0),
             ("max_contraction", self.max_contraction, 0.0, 1.0),
-            ("damping", self.damping, 0.0, 1.0),
+            ("damping", self.damping, 0.0, 1000.0),
             (
                 "volume.gain",
                 self.volume.gain,

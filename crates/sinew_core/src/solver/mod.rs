@@ -4,7 +4,7 @@
 //! read inputs      activation → rest lengths and volume ratio; bone poses
 //! for each substep (Small Steps; targets interpolated within the frame):
 //!     update targets   bone poses at the substep, attachment goals
-//!     integrate        v += Δt g;  v *= damping;  p = x + Δt v
+//!     integrate        v += Δt g;  v *= e^(−c Δt);  p = x + Δt v
 //!     λ = 0
 //!     for it in 0..N_it:
 //!         update targets   publish every muscle's p as its snapshot (BE4/BE7)

@@ -131,8 +131,6 @@ pub struct FrameParams {
     pub iterations: u32,
     /// Gravity in scene units, `g / space_scale`. Units: scene units/s².
     pub gravity: Vec3,
-    /// Damping per substep is `(1 − d)^damping_exp` (`1 / substeps`).
-    pub damping_exp: f32,
     /// Projection method.
     pub method: SolverMethod,
     /// Projection order.
@@ -164,7 +162,6 @@ impl FrameParams {
             substeps,
             iterations: settings.iterations.max(1),
             gravity: settings.gravity / settings.space_scale,
-            damping_exp: 1.0 / substeps as f32,
             method: settings.method,
             order: ProjectionOrder::new(&settings.projection_order),
             full_search_interval: settings.full_search_interval.max(1),

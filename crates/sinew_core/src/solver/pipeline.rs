@@ -41,10 +41,10 @@ pub use super::closest_data::closest_data;
 pub use super::link::link;
 
 /// Starts a substep of `m` (after [`update_attachment_goals`]): predicted
-/// positions (gravity, damping `(1 − d)^damping_exp`), pinned particles on
+/// positions (gravity, damping `e^(−c h)`), pinned particles on
 /// their goals, multipliers zeroed, and a free muscle's momentum recorded.
 pub fn begin_substep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &SubstepParams) {
-    integrate(m, p.frame.gravity, p.h, p.frame.damping_exp);
+    integrate(m, p.frame.gravity, p.h);
     m.place_pinned();
     m.constraints.clear_lambdas();
     ws.momentum = momentum::is_free(m).then(|| momentum::measure(m));
@@ -228,9 +228,12 @@ pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> 
     }
 }
 
-/// Explicit Euler prediction with gravity and per-substep damping.
-fn integrate(m: &mut Muscle, gravity: Vec3, h: f32, damping_exp: f32) {
-    let keep = (1.0 - m.params.damping).powf(damping_exp);
+/// Explicit Euler prediction with gravity and damping: over a substep of
+/// `h` seconds the velocity keeps `e^(−c h)` (`c` =
+/// [`crate::muscle::MuscleParams::damping`], per second), so the decay per
+/// second is the same at any frame rate and substep count.
+fn integrate(m: &mut Muscle, gravity: Vec3, h: f32) {
+    let keep = (-m.params.damping * h).exp();
     for i in 0..m.x.len() {
         let v = (m.v[i] + h * gravity) * keep;
         m.v[i] = v;
