@@ -1,7 +1,9 @@
 //! Runs a scene headless (`MinimalPlugins`, no window) for N frames through
 //! the Bevy plug-in and prints the per-block timings. With `--compare` the
 //! plain `sinew_core` driver steps the same scene in lockstep (same frames,
-//! same machine state), and both medians and the ECS overhead are reported.
+//! same machine state), and both medians and the ECS overhead are reported,
+//! with the part of it that is Bevy's own frame: an app with the same
+//! plugins but no sinew, updated in the same lockstep.
 //!
 //! `--threads N` runs both drivers on N worker threads (default: the
 //! scene's).
@@ -69,12 +71,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     app.add_plugins((
         MinimalPlugins,
         bevy::transform::TransformPlugin,
-        SinewPlugin::default(),
+        SinewPlugin::default().every_update(),
     ));
+    let mut empty = compare.then(|| {
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, bevy::transform::TransformPlugin));
+        app
+    });
     app.world_mut()
         .spawn(SinewSceneRoot::Built(Arc::new(scene)));
     let (mut ecs_ms, mut blocks_ms, mut plain_ms) = (Vec::new(), Vec::new(), Vec::new());
+    let mut empty_ms = Vec::new();
     for _ in 0..frames {
+        if let Some(empty) = &mut empty {
+            let start = Instant::now();
+            empty.update();
+            empty_ms.push(ms(start.elapsed()));
+        }
         if let Some(solver) = &mut plain {
             let start = Instant::now();
             solver.step();
@@ -106,9 +119,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     if plain.is_some() {
         let base = median(plain_ms[1..].to_vec());
+        let bevy_frame = median(empty_ms[1..].to_vec());
         println!(
             "plain driver: median step {base:.3} ms; ECS overhead {:+.1} %",
             (ecs / base - 1.0) * 100.0
+        );
+        println!(
+            "of which Bevy's own frame (same plugins, no sinew): {bevy_frame:.3} ms ({:.1} %)",
+            bevy_frame / base * 100.0
         );
     }
     Ok(())

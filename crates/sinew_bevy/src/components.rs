@@ -44,6 +44,10 @@ pub struct BonePose {
     /// Whether `current` was read from the bone; a fresh bone starts at rest
     /// (no motion in its first frame).
     pub initialized: bool,
+    /// Pose at the end of the last update's last step: where a bone moved by
+    /// the app (not by a sinew track or skeleton) is interpolated from when
+    /// one update runs several steps ([`crate::SimulationPacing`]).
+    pub update_start: Affine3A,
 }
 
 impl BonePose {
@@ -54,6 +58,7 @@ impl BonePose {
             current: pose,
             substep: pose,
             initialized: true,
+            update_start: pose,
         }
     }
 }

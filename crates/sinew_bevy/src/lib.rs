@@ -19,6 +19,13 @@
 //!
 //! ## Frame loop
 //!
+//! The simulation follows Bevy's [`Time`]: every step is
+//! [`SinewSettings::dt`] long and an update runs as many steps as the time
+//! since the last one holds (none, one or several; at most
+//! [`SimulationPacing::max_steps_per_update`], the rest dropped when the
+//! app falls behind), with bones read at each step's own end time. For
+//! batch runs, one step per update: [`SinewPlugin::every_update`].
+//!
 //! By default everything runs in [`PostUpdate`], after the same frame's
 //! transform propagation, so bones moved by `bevy_animation` or by user
 //! systems are seen without a frame of lag:
@@ -30,7 +37,7 @@
 //!     SinewSystems::AnimateBones    validated settings; scene tracks and skeletons
 //!                                   at the step's end time
 //!   TransformSystems::Propagate
-//!   SinewSystems::Step            runs SinewStepSchedule:
+//!   SinewSystems::Step            runs SinewStepSchedule once per step of the update:
 //!     SinewSystems::ReadInputs      bone poses, activation (curves, sensors), parameters,
 //!                                   target table and links, FrameParams, rest lengths
 //!     SinewSystems::Substeps        runs SinewSubstepSchedule once per substep:
@@ -72,6 +79,7 @@ mod compliance;
 pub mod components;
 #[cfg(feature = "debug")]
 pub mod debug;
+mod pacing;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod scene;
@@ -85,6 +93,7 @@ use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use bevy::prelude::*;
 use bevy::transform::TransformSystems;
 use components::*;
+pub use pacing::{PacingMode, SimulationPacing};
 use settings::*;
 pub use systems::{StepContext, simulation_running};
 
@@ -103,8 +112,9 @@ pub mod prelude {
     #[cfg(feature = "ui")]
     pub use crate::ui::SinewUiPlugin;
     pub use crate::{
-        ResetSimulation, SinewIterationSchedule, SinewIterationSystems, SinewPlugin,
-        SinewPrepareSchedule, SinewStepSchedule, SinewSubstepSchedule, SinewSystems, StepContext,
+        PacingMode, ResetSimulation, SimulationPacing, SinewIterationSchedule,
+        SinewIterationSystems, SinewPlugin, SinewPrepareSchedule, SinewStepSchedule,
+        SinewSubstepSchedule, SinewSystems, StepContext,
     };
 }
 
@@ -189,6 +199,7 @@ pub struct ResetSimulation;
 pub struct SinewPlugin {
     schedule: Interned<dyn ScheduleLabel>,
     settings: SinewSettings,
+    pacing: SimulationPacing,
 }
 
 impl Default for SinewPlugin {
@@ -196,6 +207,7 @@ impl Default for SinewPlugin {
         Self {
             schedule: PostUpdate.intern(),
             settings: SinewSettings::default(),
+            pacing: SimulationPacing::default(),
         }
     }
 }
@@ -220,7 +232,7 @@ impl SinewPlugin {
         self
     }
 
-    /// Substeps per frame.
+    /// Substeps per step.
     pub fn substeps(mut self, substeps: u32) -> Self {
         self.settings.substeps = substeps;
         self
@@ -246,7 +258,7 @@ impl SinewPlugin {
         self
     }
 
-    /// Simulated seconds per frame.
+    /// The fixed step in seconds (one step per `dt` of app time).
     pub fn dt(mut self, dt: f32) -> Self {
         self.settings.dt = dt;
         self
@@ -257,11 +269,27 @@ impl SinewPlugin {
         self.settings.gravity = gravity;
         self
     }
+
+    /// How the simulation follows the app's updates (default: real time,
+    /// steps of `dt` as [`Time`] advances, at most 4 an update).
+    pub fn pacing(mut self, pacing: SimulationPacing) -> Self {
+        self.pacing = pacing;
+        self
+    }
+
+    /// One step per app update, whatever time it took (offline runs,
+    /// frame-by-frame comparisons): `pacing` with [`PacingMode::EveryUpdate`].
+    pub fn every_update(mut self) -> Self {
+        self.pacing.mode = PacingMode::EveryUpdate;
+        self
+    }
 }
 
 impl Plugin for SinewPlugin {
     fn build(&self, app: &mut App) {
         app.insert_resource(self.settings.clone())
+            .insert_resource(self.pacing)
+            .register_type::<SimulationPacing>()
             .init_resource::<SinewClock>()
             .init_resource::<SinewTimings>()
             .init_resource::<SimulationState>()
@@ -403,14 +431,26 @@ impl Plugin for SinewPlugin {
     }
 }
 
-/// Runs [`SinewPrepareSchedule`] (the system in [`SinewSystems::Prepare`]).
+/// Runs [`SinewPrepareSchedule`] (the system in [`SinewSystems::Prepare`]);
+/// its [`SinewSystems::AnimateBones`] decides how many steps the update
+/// runs (none unless it runs).
 fn run_prepare(world: &mut World) {
+    world.resource_mut::<StepContext>().steps_this_update = 0;
     world.run_schedule(SinewPrepareSchedule);
 }
 
-/// Runs [`SinewStepSchedule`] (the system in [`SinewSystems::Step`]).
+/// Runs [`SinewStepSchedule`] once per step of this update (the system in
+/// [`SinewSystems::Step`]), each with its own end time.
 fn run_step(world: &mut World) {
-    world.run_schedule(SinewStepSchedule);
+    let steps = world.resource::<StepContext>().steps_this_update;
+    for k in 0..steps {
+        let time = world.resource::<SinewClock>().time;
+        let mut ctx = world.resource_mut::<StepContext>();
+        ctx.step_of_update = k;
+        ctx.end_time = time + ctx.settings.dt * ctx.settings.time_scale;
+        world.resource_mut::<SinewTimings>().start_step();
+        world.run_schedule(SinewStepSchedule);
+    }
 }
 
 /// Handles [`ResetSimulation`]: clock to zero, every scene respawned.

@@ -97,15 +97,18 @@ impl From<SolverMethod> for Method {
 #[derive(Resource, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Resource)]
 pub struct SinewSettings {
-    /// Simulated time per frame (one app update), seconds. Default `1/60`.
+    /// The fixed step, seconds: real-time pacing runs one step per `dt` of
+    /// app time ([`crate::SimulationPacing`]). Default `1/60`.
     pub dt: f32,
     /// Iterations per substep (`N_it`). Default `10`.
     pub iterations: u32,
-    /// Substeps per frame. Default `1`.
+    /// Substeps per step. Default `1`.
     pub substeps: u32,
     /// Gravity, m/s² (real units; divided by `space_scale`). Default zero.
     pub gravity: Vec3,
-    /// Multiplies `dt` (> 0; pause with [`SimulationState::Paused`]). Default `1`.
+    /// Simulated seconds per second of app time: a step of `dt` simulates
+    /// `dt × time_scale` (slow motion below 1; > 0, pause with
+    /// [`SimulationState::Paused`]). Default `1`.
     pub time_scale: f32,
     /// Scene units per metre (`100` for centimetres). Default `1`.
     pub space_scale: f32,
@@ -206,7 +209,8 @@ pub enum SimulationState {
     StepOnce,
 }
 
-/// The simulation clock: time and frame count of the last step.
+/// The simulation clock: time and frame count of the last step, and how
+/// it keeps pace with the app ([`crate::SimulationPacing`]).
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Reflect)]
 #[reflect(Resource)]
 pub struct SinewClock {
@@ -214,6 +218,15 @@ pub struct SinewClock {
     pub time: f32,
     /// Steps taken.
     pub frame: u64,
+    /// App time owed to the simulation: less than a step, carried to the
+    /// next update (real-time pacing).
+    pub owed: Duration,
+    /// App time dropped because updates owed more than
+    /// [`crate::SimulationPacing::max_steps_per_update`] steps (the
+    /// simulation fell behind and slowed down), in total.
+    pub dropped: Duration,
+    /// Steps the last update ran.
+    pub steps_last_update: u32,
 }
 
 /// Where a frame's time went, per block (SPEC §4, the core's

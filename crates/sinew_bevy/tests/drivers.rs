@@ -44,7 +44,7 @@ fn run(
     app.add_plugins((
         MinimalPlugins,
         bevy::transform::TransformPlugin,
-        SinewPlugin::default(),
+        SinewPlugin::default().every_update(),
     ));
     let root = app
         .world_mut()

@@ -24,7 +24,7 @@ fn app() -> App {
     app.add_plugins((
         MinimalPlugins,
         bevy::transform::TransformPlugin,
-        SinewPlugin::default(),
+        SinewPlugin::default().every_update(),
     ));
     app
 }

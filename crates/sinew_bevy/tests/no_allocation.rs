@@ -84,7 +84,7 @@ fn stepping_the_arm_in_bevy_allocates_nothing_after_the_first_frames() {
             app.add_plugins((
                 MinimalPlugins,
                 bevy::transform::TransformPlugin,
-                SinewPlugin::default(),
+                SinewPlugin::default().every_update(),
             ));
             app.add_systems(
                 SinewPrepareSchedule,

@@ -4,23 +4,27 @@
 
 use super::{SolverWorkers, StepContext, ValidSettings, pair, surface_of};
 use crate::components::*;
-use crate::settings::{SinewClock, SinewSettings, SinewTimings};
+use crate::pacing::SimulationPacing;
+use crate::settings::{SimulationState, SinewClock, SinewSettings, SinewTimings};
 use bevy::prelude::*;
+use sinew_core::animation::interpolate_rigid;
 use sinew_core::constraints::TargetId;
 use sinew_core::glam::Affine3A;
 use sinew_core::solver::{FrameParams, Parallelism, Stopwatch, passes, pipeline};
 
 /// Validates the settings when they changed (keeping the last valid ones,
-/// with a warning once, when they fail) and opens the step: its end time is
-/// known before the bones are animated.
+/// with a warning once, when they fail) and decides how many steps this
+/// update runs ([`SimulationPacing`]): the bones are animated for the end
+/// time of the last of them.
 pub(crate) fn begin_step(
     settings: Res<SinewSettings>,
-    clock: Res<SinewClock>,
+    time: Res<Time>,
+    pacing: Res<SimulationPacing>,
+    state: Res<SimulationState>,
+    mut clock: ResMut<SinewClock>,
     mut valid: ResMut<ValidSettings>,
     mut ctx: ResMut<StepContext>,
-    mut timings: ResMut<SinewTimings>,
 ) {
-    timings.start_step();
     if settings.is_changed() || valid.settings.is_none() {
         let core = settings.to_core();
         match core.validate() {
@@ -39,7 +43,15 @@ pub(crate) fn begin_step(
         }
     }
     let s = &ctx.settings;
-    ctx.end_time = clock.time + s.dt * s.time_scale;
+    let steps = pacing.steps(*state, time.delta(), s.dt, &mut clock);
+    // The steps' end times, added as the steps will add them.
+    let mut end_time = clock.time;
+    for _ in 0..steps {
+        end_time += s.dt * s.time_scale;
+    }
+    ctx.end_time = end_time;
+    ctx.steps_this_update = steps;
+    clock.steps_last_update = steps;
 }
 
 /// Writes keyframed bones' transforms for the end time of the coming step.
@@ -91,18 +103,56 @@ pub(crate) fn place_new_targets(
     }
 }
 
-/// Reads every bone's pose after transform propagation; a skeleton's bones
-/// take the frames [`animate_skeletons`] posed exactly (a transform round
-/// trip would round them).
+/// What [`read_bones`] reads of a bone: where propagation put it, its pose,
+/// its sinew track (with its `Transform`, for the scale) and its parent.
+type BoneInputs = (
+    &'static GlobalTransform,
+    &'static mut BonePose,
+    Option<(&'static BoneTrack, &'static Transform)>,
+    Option<&'static ChildOf>,
+);
+
+/// Reads every bone's pose at the step's end time. The update's last step
+/// reads them after transform propagation (a skeleton's bones take the
+/// frames [`animate_skeletons`] posed exactly: a transform round trip would
+/// round them). An earlier step of an update that runs several
+/// ([`SimulationPacing`]) poses sinew's own animation at its own end time —
+/// tracks as propagation would, skeletons exactly — and interpolates bones
+/// the app moves between their poses at the end of the last update and now.
 pub(crate) fn read_bones(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
-    mut bones: Query<(&GlobalTransform, &mut BonePose)>,
+    mut bones: Query<BoneInputs>,
+    parents: Query<&GlobalTransform>,
     skeletons: Query<(&SkeletonDriver, &SkeletonFrames)>,
+    mut scratch: Local<(Vec<f32>, Vec<Affine3A>)>,
 ) {
     let mut clock = Stopwatch::new(ctx.settings.timers);
-    for (global, mut pose) in &mut bones {
-        let now = global.affine();
+    let (k, steps) = (ctx.step_of_update, ctx.steps_this_update);
+    let last = k + 1 >= steps;
+    let fraction = (k + 1) as f32 / steps.max(1) as f32;
+    for (global, mut pose, track, parent) in &mut bones {
+        if k == 0 {
+            pose.update_start = pose.current;
+        }
+        let now = if last {
+            global.affine()
+        } else if let Some((track, transform)) = track.filter(|(t, _)| !t.0.keys.is_empty()) {
+            let (rotation, translation) = track.0.sample_parts(ctx.end_time);
+            let local = Transform {
+                rotation,
+                translation,
+                ..*transform
+            };
+            match parent.and_then(|p| parents.get(p.parent()).ok()) {
+                Some(parent) => parent.mul_transform(local).affine(),
+                None => GlobalTransform::from(local).affine(),
+            }
+        } else if pose.initialized {
+            interpolate_rigid(pose.update_start, global.affine(), fraction)
+        } else {
+            global.affine()
+        };
         if pose.initialized {
             pose.previous = pose.current;
         } else {
@@ -111,9 +161,18 @@ pub(crate) fn read_bones(
         }
         pose.current = now;
     }
+    let (values, world) = &mut *scratch;
     for (driver, frames) in &skeletons {
+        let frames = if last {
+            &frames.0
+        } else {
+            driver.rig.pose_at(ctx.end_time, values, world);
+            &*world
+        };
         for &(entity, body) in &driver.bones {
-            if let (Ok((_, mut pose)), Some(frame)) = (bones.get_mut(entity), frames.0.get(body)) {
+            if let (Ok((_, mut pose, _, _)), Some(frame)) =
+                (bones.get_mut(entity), frames.get(body))
+            {
                 pose.current = *frame;
             }
         }

@@ -42,6 +42,10 @@ pub struct StepContext {
     pub iteration: IterationParams,
     /// Iterations this step runs (`max(global, every muscle's own)`).
     pub iterations: u32,
+    /// Steps this app update runs ([`crate::SimulationPacing`]).
+    pub steps_this_update: u32,
+    /// Which of them is running (0-based).
+    pub step_of_update: u32,
 }
 
 impl Default for StepContext {
@@ -56,6 +60,8 @@ impl Default for StepContext {
             frame,
             substep,
             settings,
+            steps_this_update: 0,
+            step_of_update: 0,
         }
     }
 }
