@@ -137,6 +137,7 @@ pub(crate) fn start_builds(
     mut commands: Commands,
     builders: Query<(Entity, &MuscleBuilder), Without<BuildTask>>,
     bones: Query<(&BonePose, &GlobalTransform)>,
+    settings: Res<crate::settings::SinewSettings>,
     #[cfg(feature = "render")] meshes: Option<Res<Assets<Mesh>>>,
 ) {
     for (entity, builder) in &builders {
@@ -193,6 +194,7 @@ pub(crate) fn start_builds(
         let name = builder.name.clone();
         let roots = builder.roots.clone();
         let params = builder.params.clone();
+        let length_unit = settings.length_unit;
         let task = AsyncComputeTaskPool::get().spawn(async move {
             let mesh = match mesh {
                 Ok(mesh) => mesh,
@@ -210,7 +212,7 @@ pub(crate) fn start_builds(
                 params,
                 maps: Default::default(),
             };
-            CoreMuscle::build(desc, |b| poses[b]).map_err(|e| e.to_string())
+            CoreMuscle::build(desc, length_unit, |b| poses[b]).map_err(|e| e.to_string())
         });
         commands
             .entity(entity)

@@ -251,10 +251,11 @@ impl SinewPlugin {
         self
     }
 
-    /// Scene units per metre (`100` for a scene in centimetres): gravity is
-    /// scaled to match.
+    /// Scene units per metre (`100` for a scene in centimetres): gravity,
+    /// densities, Volume's compliance and lengths such as the contact reach
+    /// are converted to match ([`SinewSettings::length_unit`]).
     pub fn length_unit(mut self, units_per_metre: f32) -> Self {
-        self.settings.space_scale = units_per_metre;
+        self.settings.length_unit = units_per_metre;
         self
     }
 

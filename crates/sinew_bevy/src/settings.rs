@@ -104,14 +104,16 @@ pub struct SinewSettings {
     pub iterations: u32,
     /// Substeps per step. Default `1`.
     pub substeps: u32,
-    /// Gravity, m/s² (real units; divided by `space_scale`). Default zero.
+    /// Gravity, m/s² (real units; scaled by `length_unit`). Default zero.
     pub gravity: Vec3,
     /// Simulated seconds per second of app time: a step of `dt` simulates
     /// `dt × time_scale` (slow motion below 1; > 0, pause with
     /// [`SimulationState::Paused`]). Default `1`.
     pub time_scale: f32,
-    /// Scene units per metre (`100` for centimetres). Default `1`.
-    pub space_scale: f32,
+    /// Scene units per metre (`100` for centimetres): geometry is in scene
+    /// units, every physical parameter SI, converted by it as in the core
+    /// ([`SolverSettings::length_unit`]). Default `1`.
+    pub length_unit: f32,
     /// Projection method. Default [`Method::Sequential`].
     pub method: Method,
     /// Worker threads of the plug-in's solver pool, which runs muscles and
@@ -157,7 +159,7 @@ impl From<SolverSettings> for SinewSettings {
             substeps: s.substeps,
             gravity: s.gravity,
             time_scale: s.time_scale,
-            space_scale: s.space_scale,
+            length_unit: s.length_unit,
             method: s.method.into(),
             threads: s.threads,
             schedule: s.schedule,
@@ -181,7 +183,7 @@ impl SinewSettings {
             substeps: self.substeps,
             gravity: self.gravity,
             time_scale: self.time_scale,
-            space_scale: self.space_scale,
+            length_unit: self.length_unit,
             method: self.method.into(),
             projection_order: self.projection_order.clone(),
             timers: self.timers,

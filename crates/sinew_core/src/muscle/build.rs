@@ -6,9 +6,12 @@ use crate::constraints::{ActivationRest, DistanceBatch, ParticleId, VolumeConstr
 use fiber::fiber_field;
 
 impl Muscle {
-    /// Builds a muscle. `bone_transform(i)` gives bone `i`'s start-frame transform.
+    /// Builds a muscle in a scene of `length_unit` scene units per metre
+    /// ([`crate::SolverSettings::length_unit`], `1` for metres).
+    /// `bone_transform(i)` gives bone `i`'s start-frame transform.
     pub fn build(
         desc: MuscleDesc,
+        length_unit: f32,
         bone_transform: impl Fn(usize) -> Affine3A,
     ) -> Result<Self, BuildError> {
         let MuscleDesc {
@@ -21,6 +24,14 @@ impl Muscle {
             maps,
         } = desc;
         params.validate(&name)?;
+        if !(length_unit > 0.0 && length_unit.is_finite()) {
+            return Err(BuildError::InvalidParameter {
+                muscle: name,
+                parameter: "length_unit".into(),
+                value: length_unit,
+                reason: "must be finite and > 0 (scene units per metre)".into(),
+            });
+        }
         let n = mesh.vertex_count();
         for (map, len) in [
             ("sliding", maps.sliding.as_ref().map(Vec::len)),
@@ -128,7 +139,7 @@ impl Muscle {
         // Particles.
         let mut rest = mesh.positions.clone();
         rest.extend_from_slice(&structure.points);
-        let w = mass::inverse_masses(&mesh, &structure, &params, &maps);
+        let w = mass::inverse_masses(&mesh, &structure, &params, &maps, length_unit);
         let nparticles = rest.len();
         let mut muscle = Self {
             name,
@@ -149,6 +160,7 @@ impl Muscle {
             constraints: MuscleConstraints::default(),
             maps,
             activation_reported: false,
+            length_unit,
             topology: 0,
         };
         muscle.build_own_constraints(closed);
@@ -165,6 +177,7 @@ impl Muscle {
     fn build_own_constraints(&mut self, closed: bool) {
         self.build_table_constraints();
         let (p, n) = (&self.params, self.surface_count);
+        let compliance = self.volume_compliance();
         if p.volume.enabled && closed {
             self.constraints.volume = Some(VolumeConstraint {
                 polygon_offsets: self.mesh.polygon_offsets.clone(),
@@ -172,7 +185,7 @@ impl Muscle {
                 surface_count: n,
                 rest_volume: self.mesh.volume(),
                 ratio: 1.0,
-                compliance: p.compliance.volume,
+                compliance,
                 lambda: 0.0,
                 gradient: Vec::with_capacity(n),
                 relative: Vec::with_capacity(n),

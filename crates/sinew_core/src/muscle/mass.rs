@@ -35,29 +35,33 @@
 use super::{InternalStructure, MassMode, MuscleParams, VertexMaps};
 use crate::mesh::SurfaceMesh;
 
-/// Inverse masses of the surface vertices, then the internal points.
+/// Inverse masses of the surface vertices, then the internal points, in a
+/// scene of `length_unit` scene units per metre (densities are per cubic
+/// or square metre; the mesh's volume and areas are in scene units).
 pub(super) fn inverse_masses(
     mesh: &SurfaceMesh,
     structure: &InternalStructure,
     params: &MuscleParams,
     maps: &VertexMaps,
+    length_unit: f32,
 ) -> Vec<f32> {
     let n = mesh.vertex_count();
     let internal = structure.points.len();
+    let unit = f64::from(length_unit);
     let mut mass = match params.mass {
         MassMode::Uniform(m) => vec![m; n + internal],
         MassMode::Density(rho) if internal > 0 && structure.vertex_point.len() == n => {
-            lumped_solid(mesh, structure, f64::from(rho))
+            lumped_solid(mesh, structure, f64::from(rho) / (unit * unit * unit))
         }
         MassMode::Density(rho) => {
             let area = vertex_areas(mesh);
             let sum: f64 = area.iter().sum();
-            let total = f64::from(rho) * mesh.volume().abs();
+            let total = f64::from(rho) / (unit * unit * unit) * mesh.volume().abs();
             area.iter().map(|&a| (total * a / sum) as f32).collect()
         }
         MassMode::AreaDensity(sigma) => vertex_areas(mesh)
             .iter()
-            .map(|&a| (f64::from(sigma) * a) as f32)
+            .map(|&a| (f64::from(sigma) / (unit * unit) * a) as f32)
             .collect(),
     };
     if let Some(mult) = &maps.mass {

@@ -169,6 +169,10 @@ pub struct Muscle {
     pub maps: VertexMaps,
     /// Activation was outside [0, 1] and has been reported.
     pub activation_reported: bool,
+    /// Scene units per metre the muscle was built in
+    /// ([`crate::SolverSettings::length_unit`]): its SI parameters are
+    /// converted by it.
+    pub length_unit: f32,
     /// Bumped whenever the constraints are relinked, attached or switched
     /// on or off: what the solver derived from them (colour plans, Jacobi
     /// incidence, in its `MuscleWorkspace`) is stale once it differs.
@@ -176,6 +180,18 @@ pub struct Muscle {
 }
 
 impl Muscle {
+    /// [`MuscleParams::contact_reach`] in scene units.
+    pub fn contact_reach(&self) -> f32 {
+        self.params.contact_reach * self.length_unit
+    }
+
+    /// Volume's compliance in scene units: [`Compliances::volume`] (m³/N)
+    /// times the length unit's fourth power, so that a scene in other
+    /// units keeps its volume as stiff.
+    pub fn volume_compliance(&self) -> f32 {
+        self.params.compliance.volume * self.length_unit.powi(4)
+    }
+
     /// The topology counter (see the field's docs).
     pub fn topology(&self) -> u64 {
         self.topology
@@ -267,8 +283,9 @@ impl Muscle {
         k.internal.compliance = p.internal;
         k.attach.compliance.fill(p.attach);
         k.branch_attach.compliance.fill(p.branch_attach);
-        if let Some(v) = &mut k.volume {
-            v.compliance = p.volume;
+        let volume = self.volume_compliance();
+        if let Some(v) = &mut self.constraints.volume {
+            v.compliance = volume;
         }
         self.pin_attachments();
         self.relink_weights();

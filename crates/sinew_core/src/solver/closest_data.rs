@@ -32,13 +32,14 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     if nt == 0 {
         return;
     }
+    let reach = m.contact_reach();
     let c = &mut m.constraints;
     let input = SlidingInput {
         p: &m.p,
         target_ids: &ws.target_ids,
         targets,
         search,
-        reach: m.params.contact_reach,
+        reach,
     };
     let run = SlidingRun::of(&mut c.sliding, &mut ws.warm);
     if search.split && run.particle.len() > CLOSEST_CHUNK {
@@ -392,7 +393,7 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
         // A little less than the exact margin, so that rounding never skips
         // a cell the per-cell test would have checked.
         let margin = if margin.is_finite() {
-            (margin * (1.0 - 1e-3) - 1e-6).max(0.0)
+            (margin * (1.0 - 1e-3) - 1e-6 * m.length_unit).max(0.0)
         } else {
             f32::INFINITY
         };

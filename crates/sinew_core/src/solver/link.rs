@@ -39,6 +39,7 @@ type Candidate = (usize, ClosestHit);
 pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, targets: &T) {
     let nt = ws.target_ids.len();
     let n = m.surface_count;
+    let reach = m.contact_reach();
     let c = &mut m.constraints;
     c.sliding = Default::default();
     c.soft = Default::default();
@@ -62,7 +63,6 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     let hits: Vec<Option<ClosestHit>> = (0..n * nt)
         .map(|cell| surfaces[cell % nt].closest(m.x[cell / nt], None))
         .collect();
-    let reach = m.params.contact_reach;
     // Whether vertex `v` may touch target `slot`: within reach, and for a
     // muscle, outside it at rest with every neighbour.
     let outside = |v: usize, slot: usize| hits[v * nt + slot].is_none_or(|h| !h.is_inside());

@@ -283,7 +283,7 @@ impl Solver {
             }
         }
         let bones = &self.bones;
-        let muscle = Muscle::build(desc, |b| bones[b].transform)?;
+        let muscle = Muscle::build(desc, self.settings.length_unit, |b| bones[b].transform)?;
         let mut target = TargetSurface::new(
             muscle.name.clone(),
             TargetSource::Muscle(index),

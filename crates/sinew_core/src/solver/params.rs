@@ -129,7 +129,7 @@ pub struct FrameParams {
     pub substeps: u32,
     /// The global iteration count `N`; a muscle runs its own count.
     pub iterations: u32,
-    /// Gravity in scene units, `g / space_scale`. Units: scene units/s².
+    /// Gravity in scene units, `g × length_unit`. Units: scene units/s².
     pub gravity: Vec3,
     /// Projection method.
     pub method: SolverMethod,
@@ -161,7 +161,7 @@ impl FrameParams {
             dt: settings.dt * settings.time_scale,
             substeps,
             iterations: settings.iterations.max(1),
-            gravity: settings.gravity / settings.space_scale,
+            gravity: settings.gravity * settings.length_unit,
             method: settings.method,
             order: ProjectionOrder::new(&settings.projection_order),
             full_search_interval: settings.full_search_interval.max(1),

@@ -110,9 +110,18 @@ pub struct SolverSettings {
     pub gravity: Vec3,
     /// Multiplies `dt` (slow motion < 1). Default: `1`.
     pub time_scale: f32,
-    /// Scene units are `1/space_scale` of real size: gravity is divided by it.
-    /// Default: `1` (scene in metres).
-    pub space_scale: f32,
+    /// Scene units per metre (`100` for a scene in centimetres): the one
+    /// unit of length. Geometry (meshes, bone tracks, attachment points) is
+    /// in scene units; every physical parameter is SI and converted by it —
+    /// gravity (m/s²) and velocities scale by it, densities (kg/m³, kg/m²)
+    /// are divided by its cube and square, Volume's compliance (m³/N) is
+    /// multiplied by its fourth power, lengths such as
+    /// [`crate::muscle::MuscleParams::contact_reach`] (m) by it. Distance
+    /// compliances (m/N = s²/kg), masses (kg) and damping (1/s) are
+    /// independent of it. A scene authored in centimetres with `100` moves
+    /// as the same scene in metres, ×100. Default: `1` (metres).
+    #[serde(alias = "space_scale")]
+    pub length_unit: f32,
     /// Projection method. Default: [`SolverMethod::Sequential`].
     pub method: SolverMethod,
     /// Order in which constraint types are projected. Default: SPEC §4.3.
@@ -171,7 +180,7 @@ impl Default for SolverSettings {
             substeps: 1,
             gravity: Vec3::ZERO,
             time_scale: 1.0,
-            space_scale: 1.0,
+            length_unit: 1.0,
             method: SolverMethod::Sequential,
             projection_order: ConstraintKind::CANONICAL_ORDER.to_vec(),
             timers: true,
@@ -209,11 +218,11 @@ impl SolverSettings {
         if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
             return Err(bad("time_scale", self.time_scale, "must be finite and > 0"));
         }
-        if !(self.space_scale > 0.0 && self.space_scale.is_finite()) {
+        if !(self.length_unit > 0.0 && self.length_unit.is_finite()) {
             return Err(bad(
-                "space_scale",
-                self.space_scale,
-                "must be finite and > 0",
+                "length_unit",
+                self.length_unit,
+                "must be finite and > 0 (scene units per metre)",
             ));
         }
         if self.full_search_interval == 0 {
