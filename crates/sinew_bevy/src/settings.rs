@@ -119,7 +119,7 @@ pub struct SinewSettings {
     /// Worker threads of the plug-in's solver pool, which runs muscles and
     /// the chunks inside a large muscle (`1`: everything on the thread that
     /// runs the step; `0`: one per core). As in [`SolverSettings::threads`];
-    /// the same bits for any count. Default `1`.
+    /// the same bits for any count. Default `0` (every core).
     pub threads: u32,
     /// How coloured methods use the threads (as
     /// [`SolverSettings::schedule`]). Default [`SweepSchedule::Auto`].

@@ -158,7 +158,7 @@ pub struct SolverSettings {
     /// Worker threads for closest data and projection, split by muscle
     /// (SPEC §9.1): `1` spawns none, `0` uses every core. Muscles read each
     /// other only through published snapshots, so the result is bit-identical
-    /// for any count. Default: `1`.
+    /// for any count. Default: `0` (every core).
     pub threads: u32,
     /// How coloured methods use the threads. Default: [`SweepSchedule::Auto`].
     pub schedule: SweepSchedule,
@@ -188,7 +188,7 @@ impl Default for SolverSettings {
             choose_interval: 4,
             feature_contacts: false,
             walk_every_iteration: true,
-            threads: 1,
+            threads: 0,
             schedule: SweepSchedule::Auto,
             parallel_threshold: 8192,
         }
