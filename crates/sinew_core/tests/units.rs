@@ -1,13 +1,14 @@
 //! One length unit: a scene authored in centimetres (`length_unit: 100`,
 //! geometry ×100, every physical parameter still SI) moves as the same
 //! scene in metres, ×100 — gravity, masses from density, Volume's
-//! compliance and the contact reach all converted by the unit.
+//! compliance and the contact reach all converted by the unit; and
+//! `sinew check`'s figures are SI in both.
 
 use sinew_core::glam::Vec3;
 use sinew_core::mesh::{LoadOptions, SurfaceMesh};
 use sinew_core::muscle::MuscleParams;
 use sinew_core::scene::{AttachmentSpec, BoneShape, BoneSpec, MeshSource, MuscleSpec, Scene};
-use sinew_core::{Solver, SolverMethod, SolverSettings};
+use sinew_core::{Solver, SolverMethod, SolverSettings, analysis};
 use std::path::{Path, PathBuf};
 
 const MESH: &str = "../meshes/myoarm/BRA.obj";
@@ -117,6 +118,15 @@ fn a_scene_in_centimetres_moves_as_the_scene_in_metres() {
             (hi - lo) * 1e3
         );
         assert!(moved > 5e-4, "the muscle must move ({moved} m)");
+        // `sinew check`'s figures are SI in both.
+        let errors = |s: &Solver| analysis::attachment_errors(s).fold(0.0, f32::max);
+        let (e_m, e_cm) = (errors(&metres), errors(&centimetres));
+        assert!(
+            (e_m - e_cm).abs() <= 1e-6,
+            "attachment error {e_m} m vs {e_cm} m"
+        );
+        let deep = |s: &Solver| analysis::penetrating_vertices(s, 1e-4);
+        assert_eq!(deep(&metres), deep(&centimetres));
         assert!(
             relative < 1e-5,
             "{method:?}, activation {activation}: {worst} m apart"

@@ -362,13 +362,13 @@ impl RunMetrics {
             };
             if has_velocity {
                 for (k, i) in range.clone().enumerate() {
-                    let v = (local[i] - old[i]) / dt;
+                    let v = (local[i] - old[i]) / (dt * m.length_unit);
                     let mass = 1.0 / m.free_w[k].max(f32::MIN_POSITIVE);
                     s.velocity2 += f64::from(v.length_squared());
                     s.kinetic_energy += 0.5 * f64::from(mass) * f64::from(v.length_squared());
                     s.samples += 1;
                     if has_acceleration {
-                        let a = (local[i] - 2.0 * old[i] + older[i]) / (dt * dt);
+                        let a = (local[i] - 2.0 * old[i] + older[i]) / (dt * dt * m.length_unit);
                         s.acceleration2 += f64::from(a.length_squared());
                         s.acceleration_samples += 1;
                     }

@@ -97,19 +97,20 @@ pub fn belly_cross_section(solver: &Solver, muscle: usize) -> f32 {
     cross_section_area(surface, &m.mesh.triangles, point, axis)
 }
 
-/// Distance of every attached vertex from its bone point.
+/// Distance of every attached vertex from its bone point. Units: m (scene
+/// units ÷ [`crate::SolverSettings::length_unit`]), as every figure here.
 pub fn attachment_errors(solver: &Solver) -> impl Iterator<Item = f32> + '_ {
     solver.muscles().iter().flat_map(move |m| {
         m.attachments.iter().map(move |a| {
             let pose = a
                 .bone
                 .map_or(glam::Affine3A::IDENTITY, |b| solver.bones()[b].transform);
-            m.x[a.vertex.index()].distance(pose.transform_point3(a.vertex_local))
+            m.x[a.vertex.index()].distance(pose.transform_point3(a.vertex_local)) / m.length_unit
         })
     })
 }
 
-/// Per muscle, its surface vertices deeper than `depth` inside any bone mesh.
+/// Per muscle, its surface vertices deeper than `depth` (m) inside any bone mesh.
 /// The closest-point test proposes, the winding number confirms.
 pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
     let bones: Vec<_> = solver
@@ -121,6 +122,7 @@ pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
         .muscles()
         .iter()
         .map(|m| {
+            let depth = depth * m.length_unit;
             m.x[..m.surface_count]
                 .iter()
                 .filter(|&&x| {

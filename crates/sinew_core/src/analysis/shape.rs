@@ -183,7 +183,7 @@ impl ShapeReference {
         let mut sum = 0.0f64;
         for (v, &(bone, local)) in self.home.iter().enumerate() {
             let pose = bone.map_or(Affine3A::IDENTITY, |b| bones[b].transform);
-            let d = m.x[v].distance(pose.transform_point3(local));
+            let d = m.x[v].distance(pose.transform_point3(local)) / m.length_unit;
             sum += f64::from(d * d);
             if d > deviation.max {
                 deviation.max = d;
