@@ -8,6 +8,7 @@
 //! with the reason and logs it.
 
 use crate::components::*;
+use crate::events::{MuscleBuildError, MuscleBuildFailed, MuscleBuilt};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
 use sinew_core::closest::{TargetSource, TargetSurface};
@@ -17,6 +18,7 @@ use sinew_core::muscle::{
     AttachmentDesc, Muscle as CoreMuscle, MuscleDesc, MuscleParams, Roots, TargetRef,
 };
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Where a muscle's surface comes from.
 #[derive(Clone, Debug)]
@@ -120,14 +122,15 @@ impl MuscleBuilder {
     }
 }
 
-/// A build that failed, with the reason (also logged).
-#[derive(Component, Clone, Debug, PartialEq, Eq)]
-pub struct BuildFailed(pub String);
+/// A build that failed, with the reason (also logged, and sent as
+/// [`MuscleBuildFailed`]).
+#[derive(Component, Clone, Debug)]
+pub struct BuildFailed(pub Arc<MuscleBuildError>);
 
 /// A build in flight.
 #[derive(Component)]
 pub(crate) struct BuildTask {
-    task: Task<Result<CoreMuscle, String>>,
+    task: Task<Result<CoreMuscle, MuscleBuildError>>,
     bones: Vec<Entity>,
     targets: Vec<Entity>,
 }
@@ -148,8 +151,10 @@ pub(crate) fn start_builds(
             MuscleSource::Handle(handle) => match meshes.as_ref().and_then(|m| m.get(handle)) {
                 Some(mesh) => match crate::render::surface_from_mesh(&builder.name, mesh) {
                     Ok(mesh) => Ok(mesh),
-                    Err(e) => {
-                        fail(&mut commands, entity, &builder.name, e);
+                    Err(reason) => {
+                        let muscle = builder.name.clone();
+                        let error = MuscleBuildError::MeshAsset { muscle, reason };
+                        fail(&mut commands, entity, error);
                         continue;
                     }
                 },
@@ -186,9 +191,13 @@ pub(crate) fn start_builds(
                 point: a.point,
             });
         }
-        if let Some(b) = missing {
-            let reason = format!("attachment bone {b} has no SinewBone");
-            fail(&mut commands, entity, &builder.name, reason);
+        if let Some(bone) = missing {
+            let muscle = builder.name.clone();
+            fail(
+                &mut commands,
+                entity,
+                MuscleBuildError::MissingBone { muscle, bone },
+            );
             continue;
         }
         let name = builder.name.clone();
@@ -198,9 +207,7 @@ pub(crate) fn start_builds(
         let task = AsyncComputeTaskPool::get().spawn(async move {
             let mesh = match mesh {
                 Ok(mesh) => mesh,
-                Err((path, options)) => {
-                    SurfaceMesh::load(&path, &options).map_err(|e| e.to_string())?
-                }
+                Err((path, options)) => SurfaceMesh::load(&path, &options)?,
             };
             let desc = MuscleDesc {
                 name,
@@ -212,7 +219,7 @@ pub(crate) fn start_builds(
                 params,
                 maps: Default::default(),
             };
-            CoreMuscle::build(desc, length_unit, |b| poses[b]).map_err(|e| e.to_string())
+            Ok(CoreMuscle::build(desc, length_unit, |b| poses[b])?)
         });
         commands
             .entity(entity)
@@ -225,12 +232,18 @@ pub(crate) fn start_builds(
     }
 }
 
-fn fail(commands: &mut Commands, entity: Entity, name: &str, reason: String) {
-    error!("sinew: muscle '{name}' could not be built: {reason}");
+/// Marks `entity`'s build failed: [`BuildFailed`] on it, logged, sent as
+/// [`MuscleBuildFailed`] (message and entity event).
+fn fail(commands: &mut Commands, entity: Entity, error: MuscleBuildError) {
+    error!("sinew: a muscle could not be built: {error}");
+    let error = Arc::new(error);
     commands
         .entity(entity)
         .remove::<MuscleBuilder>()
-        .insert(BuildFailed(reason));
+        .insert(BuildFailed(error.clone()));
+    let failed = MuscleBuildFailed { entity, error };
+    commands.write_message(failed.clone());
+    commands.trigger(failed);
 }
 
 /// Inserts the built state of finished builds.
@@ -242,10 +255,10 @@ pub(crate) fn finish_builds(
         let Some(result) = check_ready(&mut build.task) else {
             continue;
         };
-        let mut e = commands.entity(entity);
-        e.remove::<BuildTask>();
+        commands.entity(entity).remove::<BuildTask>();
         match result {
             Ok(built) => {
+                let mut e = commands.entity(entity);
                 let live = muscle
                     .cloned()
                     .unwrap_or_else(|| Muscle::from_params(&built.params));
@@ -256,11 +269,10 @@ pub(crate) fn finish_builds(
                     AttachmentBones(std::mem::take(&mut build.bones)),
                     MuscleState::new(built),
                 ));
+                commands.write_message(MuscleBuilt { entity });
+                commands.trigger(MuscleBuilt { entity });
             }
-            Err(reason) => {
-                error!("sinew: a muscle could not be built: {reason}");
-                e.insert(BuildFailed(reason));
-            }
+            Err(error) => fail(&mut commands, entity, error),
         }
     }
 }

@@ -79,6 +79,7 @@ mod compliance;
 pub mod components;
 #[cfg(feature = "debug")]
 pub mod debug;
+pub mod events;
 mod pacing;
 #[cfg(feature = "render")]
 pub mod render;
@@ -107,6 +108,9 @@ pub mod prelude {
     };
     #[cfg(feature = "debug")]
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
+    pub use crate::events::{
+        MuscleBuildError, MuscleBuildFailed, MuscleBuilt, SettingsRejected, SinewLog,
+    };
     pub use crate::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
     pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
     #[cfg(feature = "ui")]
@@ -298,6 +302,10 @@ impl Plugin for SinewPlugin {
             .init_resource::<systems::ValidSettings>()
             .init_resource::<systems::SolverWorkers>()
             .add_message::<ResetSimulation>()
+            .add_message::<events::MuscleBuilt>()
+            .add_message::<events::MuscleBuildFailed>()
+            .add_message::<events::SettingsRejected>()
+            .init_resource::<events::SinewLog>()
             .register_type::<SinewSettings>()
             .register_type::<SinewClock>()
             .register_type::<SinewTimings>()
@@ -335,6 +343,7 @@ impl Plugin for SinewPlugin {
             (
                 run_prepare.in_set(SinewSystems::Prepare),
                 run_step.in_set(SinewSystems::Step),
+                events::log_messages.after(SinewSystems::Step),
             ),
         )
         .configure_sets(
@@ -371,7 +380,8 @@ impl Plugin for SinewPlugin {
         .add_systems(
             SinewPrepareSchedule,
             (
-                systems::begin_step,
+                systems::validate_settings,
+                systems::plan_update,
                 systems::animate_bone_tracks,
                 systems::animate_skeletons,
             )

@@ -6,6 +6,7 @@
 
 use crate::SinewSystems;
 use crate::components::*;
+use crate::events::MeshAssetProblem;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
@@ -48,14 +49,14 @@ pub(crate) fn register(app: &mut App) {
 
 /// Converts a Bevy triangle mesh into a [`SurfaceMesh`], welding the
 /// vertices Bevy splits at UV seams.
-pub fn surface_from_mesh(name: &str, mesh: &Mesh) -> Result<SurfaceMesh, String> {
+pub fn surface_from_mesh(name: &str, mesh: &Mesh) -> Result<SurfaceMesh, MeshAssetProblem> {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(format!("mesh of '{name}' is not a triangle list"));
+        return Err(MeshAssetProblem::NotTriangles);
     }
     let Some(VertexAttributeValues::Float32x3(positions)) =
         mesh.attribute(Mesh::ATTRIBUTE_POSITION)
     else {
-        return Err(format!("mesh of '{name}' has no Float32x3 positions"));
+        return Err(MeshAssetProblem::NoPositions);
     };
     let positions: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
     let indices: Vec<u32> = match mesh.indices() {
@@ -63,11 +64,9 @@ pub fn surface_from_mesh(name: &str, mesh: &Mesh) -> Result<SurfaceMesh, String>
         None => (0..positions.len() as u32).collect(),
     };
     let polygons: Vec<Vec<u32>> = indices.chunks_exact(3).map(<[u32]>::to_vec).collect();
-    let raw = SurfaceMesh::new(name, positions, &polygons).map_err(|e| e.to_string())?;
+    let raw = SurfaceMesh::new(name, positions, &polygons)?;
     let tolerance = raw.bounding_box_diagonal() * 1e-6;
-    raw.welded(tolerance)
-        .map(|(mesh, _)| mesh)
-        .map_err(|e| e.to_string())
+    Ok(raw.welded(tolerance).map(|(mesh, _)| mesh)?)
 }
 
 fn triangle_mesh(positions: &[Vec3], triangles: &[[u32; 3]]) -> Mesh {

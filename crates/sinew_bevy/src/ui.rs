@@ -46,6 +46,7 @@ fn panel(
     timings: Res<SinewTimings>,
     mut reset: MessageWriter<ResetSimulation>,
     mut muscles: Query<(Entity, &mut Muscle, Option<&MuscleState>)>,
+    log: Res<crate::events::SinewLog>,
     #[cfg(feature = "debug")] mut view: Option<ResMut<crate::debug::SinewDebugView>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
@@ -81,6 +82,14 @@ fn panel(
                         egui::CollapsingHeader::new(name)
                             .id_salt(entity)
                             .show(ui, |ui| muscle_panel(ui, &mut muscle));
+                    }
+                });
+            egui::CollapsingHeader::new(format!("Messages ({})", log.lines.len()))
+                .default_open(false)
+                .show(ui, |ui| {
+                    // Newest first: builds, failed builds, rejected settings.
+                    for line in log.lines.iter().rev().take(12) {
+                        ui.label(line);
                     }
                 });
         });

@@ -363,6 +363,11 @@ fn a_failed_build_is_reported_on_the_entity() {
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
     let failed = app.world().get::<BuildFailed>(e).expect("reported");
-    assert!(failed.0.contains("file.obj"), "{}", failed.0);
+    assert!(
+        matches!(*failed.0, MuscleBuildError::Mesh(_)),
+        "{}",
+        failed.0
+    );
+    assert!(failed.0.to_string().contains("file.obj"), "{}", failed.0);
     assert!(app.world().get::<MuscleState>(e).is_none());
 }

@@ -4,6 +4,7 @@
 
 use super::{SolverWorkers, StepContext, ValidSettings, pair, surface_of};
 use crate::components::*;
+use crate::events::SettingsRejected;
 use crate::pacing::SimulationPacing;
 use crate::settings::{SimulationState, SinewClock, SinewSettings, SinewTimings};
 use bevy::prelude::*;
@@ -11,19 +12,15 @@ use sinew_core::animation::interpolate_rigid;
 use sinew_core::constraints::TargetId;
 use sinew_core::glam::Affine3A;
 use sinew_core::solver::{FrameParams, Parallelism, Stopwatch, passes, pipeline};
+use std::sync::Arc;
 
-/// Validates the settings when they changed (keeping the last valid ones,
-/// with a warning once, when they fail) and decides how many steps this
-/// update runs ([`SimulationPacing`]): the bones are animated for the end
-/// time of the last of them.
-pub(crate) fn begin_step(
+/// Validates the settings when they changed, keeping the last valid ones
+/// when they fail (with a warning and a [`SettingsRejected`], once).
+pub(crate) fn validate_settings(
     settings: Res<SinewSettings>,
-    time: Res<Time>,
-    pacing: Res<SimulationPacing>,
-    state: Res<SimulationState>,
-    mut clock: ResMut<SinewClock>,
     mut valid: ResMut<ValidSettings>,
     mut ctx: ResMut<StepContext>,
+    mut commands: Commands,
 ) {
     if settings.is_changed() || valid.settings.is_none() {
         let core = settings.to_core();
@@ -37,11 +34,25 @@ pub(crate) fn begin_step(
                 if valid.rejected.as_ref() != Some(&*settings) {
                     warn!("sinew: settings rejected, keeping the last valid ones: {e}");
                     valid.rejected = Some(settings.clone());
+                    let rejected = SettingsRejected { error: Arc::new(e) };
+                    commands.write_message(rejected.clone());
+                    commands.trigger(rejected);
                 }
                 ctx.settings = valid.settings.clone().unwrap_or_default();
             }
         }
     }
+}
+
+/// Decides how many steps this update runs ([`SimulationPacing`]): the
+/// bones are animated for the end time of the last of them.
+pub(crate) fn plan_update(
+    time: Res<Time>,
+    pacing: Res<SimulationPacing>,
+    state: Res<SimulationState>,
+    mut clock: ResMut<SinewClock>,
+    mut ctx: ResMut<StepContext>,
+) {
     let s = &ctx.settings;
     let steps = pacing.steps(*state, time.delta(), s.dt, &mut clock);
     // The steps' end times, added as the steps will add them.

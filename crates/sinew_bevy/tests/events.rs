@@ -1,0 +1,153 @@
+//! The plug-in tells the app what happened: a muscle built, a build that
+//! failed (with a typed error), settings rejected — as entity events for
+//! observers, as messages, and in the panel's log.
+
+use bevy::prelude::*;
+use sinew_bevy::prelude::*;
+use sinew_core::glam::Vec3 as CoreVec3;
+use sinew_core::mesh::primitives::thesis_oval;
+use sinew_core::muscle::{MuscleParams, Roots};
+use std::sync::{Arc, Mutex};
+
+fn app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::transform::TransformPlugin,
+        SinewPlugin::default().every_update(),
+    ));
+    app
+}
+
+/// Updates until `done` holds (builds run on the async pool), at most 2 s.
+fn update_until(app: &mut App, done: impl Fn(&App) -> bool) {
+    for _ in 0..400 {
+        app.update();
+        if done(app) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    panic!("timed out");
+}
+
+#[test]
+fn a_built_muscle_is_announced_to_observers_and_in_the_log() {
+    let mut app = app();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let seen_by_observer = seen.clone();
+    app.add_observer(move |built: On<MuscleBuilt>| {
+        seen_by_observer.lock().unwrap().push(built.entity);
+    });
+    let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
+    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
+    let muscle = app
+        .world_mut()
+        .spawn((
+            Name::new("oval"),
+            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
+                .roots(Roots::LongestAxisTips)
+                .attach(MuscleAttachment::vertex(bone, 0))
+                .params(MuscleParams::default()),
+        ))
+        .id();
+    update_until(&mut app, |app| {
+        app.world().get::<MuscleState>(muscle).is_some()
+    });
+    app.update();
+    assert_eq!(*seen.lock().unwrap(), vec![muscle]);
+    let log = app.world().resource::<SinewLog>();
+    assert!(
+        log.lines.iter().any(|l| l == "built oval"),
+        "{:?}",
+        log.lines
+    );
+}
+
+#[test]
+fn a_failed_build_is_a_typed_error_for_observers_and_the_log() {
+    let mut app = app();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let seen_by_observer = seen.clone();
+    app.add_observer(move |failed: On<MuscleBuildFailed>| {
+        let is_mesh = matches!(*failed.error, MuscleBuildError::Mesh(_));
+        seen_by_observer
+            .lock()
+            .unwrap()
+            .push((failed.entity, is_mesh));
+    });
+    // A muscle whose parameters the core refuses: a negative compliance.
+    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
+    let mut params = MuscleParams::default();
+    params.compliance.fiber = -1.0;
+    let refused = app
+        .world_mut()
+        .spawn(MuscleBuilder::new("refused", MuscleSource::Mesh(mesh)).params(params))
+        .id();
+    let missing = app
+        .world_mut()
+        .spawn(MuscleBuilder::new(
+            "missing",
+            MuscleSource::File("no/such/file.obj".into(), Default::default()),
+        ))
+        .id();
+    update_until(&mut app, |app| {
+        [refused, missing]
+            .iter()
+            .all(|&e| app.world().get::<BuildFailed>(e).is_some())
+    });
+    app.update();
+    let failed = app.world().get::<BuildFailed>(refused).unwrap();
+    assert!(
+        matches!(
+            *failed.0,
+            MuscleBuildError::Build(sinew_core::BuildError::InvalidParameter { .. })
+        ),
+        "{}",
+        failed.0
+    );
+    let mut seen = seen.lock().unwrap().clone();
+    seen.sort();
+    let mut expected = vec![(refused, false), (missing, true)];
+    expected.sort();
+    assert_eq!(seen, expected);
+    let log = app.world().resource::<SinewLog>();
+    assert_eq!(
+        log.lines
+            .iter()
+            .filter(|l| l.starts_with("build failed"))
+            .count(),
+        2
+    );
+}
+
+#[test]
+fn rejected_settings_are_announced_once() {
+    let mut app = app();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let seen_by_observer = seen.clone();
+    app.add_observer(move |rejected: On<SettingsRejected>| {
+        seen_by_observer
+            .lock()
+            .unwrap()
+            .push(rejected.error.to_string());
+    });
+    app.update();
+    app.world_mut().resource_mut::<SinewSettings>().dt = f32::NAN;
+    for _ in 0..5 {
+        app.update();
+    }
+    let seen = seen.lock().unwrap().clone();
+    assert_eq!(seen.len(), 1, "{seen:?}");
+    assert!(seen[0].contains("dt"), "{}", seen[0]);
+    let log = app.world().resource::<SinewLog>();
+    assert_eq!(
+        log.lines
+            .iter()
+            .filter(|l| l.starts_with("settings rejected"))
+            .count(),
+        1
+    );
+    // The simulation went on with the last valid settings.
+    assert_eq!(app.world().resource::<SinewClock>().frame, 6);
+}
