@@ -127,6 +127,12 @@ impl MuscleBuilder {
 #[derive(Component, Clone, Debug)]
 pub struct BuildFailed(pub Arc<MuscleBuildError>);
 
+/// A muscle built from a [`MuscleBuilder`] as it was built: what
+/// [`crate::ResetSimulation`] puts back (scene muscles are respawned with
+/// their scene instead).
+#[derive(Component, Clone, Debug)]
+pub(crate) struct MuscleAtBuild(pub(crate) CoreMuscle);
+
 /// A build in flight.
 #[derive(Component)]
 pub(crate) struct BuildTask {
@@ -267,6 +273,7 @@ pub(crate) fn finish_builds(
                     muscle_snapshot(&built),
                     MuscleTargets(std::mem::take(&mut build.targets)),
                     AttachmentBones(std::mem::take(&mut build.bones)),
+                    MuscleAtBuild(built.clone()),
                     MuscleState::new(built),
                 ));
                 commands.write_message(MuscleBuilt { entity });

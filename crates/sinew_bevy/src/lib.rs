@@ -464,17 +464,30 @@ fn run_step(world: &mut World) {
     }
 }
 
-/// Handles [`ResetSimulation`]: clock to zero, every scene respawned.
+/// Handles [`ResetSimulation`]: clock to zero, every scene respawned,
+/// every hand-built muscle back to its built state.
 fn reset_simulation(
     mut messages: MessageReader<ResetSimulation>,
     mut clock: ResMut<SinewClock>,
     mut roots: Query<&mut scene::SpawnedScene>,
+    mut built: Query<(
+        &build::MuscleAtBuild,
+        &mut MuscleState,
+        &mut SolverWorkspace,
+    )>,
     mut commands: Commands,
 ) {
     if messages.read().count() == 0 {
         return;
     }
     *clock = SinewClock::default();
+    // Hand-built muscles go back to their built state (the live `Muscle`
+    // parameters are kept, and applied on the next step); their targets
+    // are linked again.
+    for (at_build, mut state, mut workspace) in &mut built {
+        *state = MuscleState::new(at_build.0.clone());
+        *workspace = SolverWorkspace::default();
+    }
     for mut spawned in &mut roots {
         for e in spawned.entities.drain(..) {
             commands.entity(e).despawn();

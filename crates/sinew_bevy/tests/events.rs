@@ -1,6 +1,7 @@
 //! The plug-in tells the app what happened: a muscle built, a build that
 //! failed (with a typed error), settings rejected — as entity events for
-//! observers, as messages, and in the panel's log.
+//! observers, as messages, and in the panel's log; and what the panel's
+//! Reset does to a hand-built muscle.
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
@@ -150,4 +151,58 @@ fn rejected_settings_are_announced_once() {
     );
     // The simulation went on with the last valid settings.
     assert_eq!(app.world().resource::<SinewClock>().frame, 6);
+}
+
+#[test]
+fn reset_puts_a_hand_built_muscle_back_as_it_was_built() {
+    let mut app = app();
+    *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Paused;
+    let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
+    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
+    let muscle = app
+        .world_mut()
+        .spawn(
+            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
+                .roots(Roots::LongestAxisTips)
+                .attach(MuscleAttachment::vertex(bone, 0))
+                .params(MuscleParams::default()),
+        )
+        .id();
+    update_until(&mut app, |app| {
+        app.world().get::<MuscleState>(muscle).is_some()
+    });
+    let positions = |app: &App| {
+        app.world()
+            .get::<MuscleState>(muscle)
+            .unwrap()
+            .muscle
+            .x
+            .clone()
+    };
+    let built = positions(&app);
+    // Contract it for half a second: it deforms.
+    app.world_mut()
+        .get_mut::<Muscle>(muscle)
+        .unwrap()
+        .activation = 1.0;
+    *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Playing;
+    for _ in 0..30 {
+        app.update();
+    }
+    let moved = positions(&app)
+        .iter()
+        .zip(&built)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(moved > 1e-3, "the muscle must deform ({moved} m)");
+    // Reset while paused: back to the built positions, bit for bit.
+    *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Paused;
+    app.world_mut().write_message(ResetSimulation);
+    app.update();
+    assert!(positions(&app) == built, "reset left the muscle deformed");
+    assert_eq!(app.world().resource::<SinewClock>().frame, 0);
+    // Playing again steps it from there.
+    *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Playing;
+    app.update();
+    assert!(positions(&app).iter().all(|p| p.is_finite()));
 }
