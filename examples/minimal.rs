@@ -17,22 +17,21 @@ fn main() {
 }
 
 fn setup(mut commands: Commands) {
-    // The brachialis from the arm scene: vertex 0 is its upper tip and
-    // vertices 1..=10 the ring around it.
+    // The brachialis from the arm scene, held by its upper tendon: every
+    // vertex within 18 mm of its tip.
     let tip = Vec3::new(-0.166, 0.300, -0.093);
     let bone = commands
         .spawn((SinewBone::new("hook"), Transform::from_translation(tip)))
         .id();
     let path = "assets/meshes/myoarm/BRA.obj";
-    let mut muscle = MuscleBuilder::new(
-        "brachialis",
-        MuscleSource::File(path.into(), LoadOptions::default()),
-    )
-    .roots(Roots::LongestAxisTips);
-    for v in 0..=10 {
-        muscle = muscle.attach(MuscleAttachment::vertex(bone, v));
-    }
-    commands.spawn(muscle);
+    commands.spawn(
+        MuscleBuilder::new(
+            "brachialis",
+            MuscleSource::File(path.into(), LoadOptions::default()),
+        )
+        .roots(Roots::LongestAxisTips)
+        .attach(MuscleAttachment::region(bone, tip, 0.018)),
+    );
     commands.spawn((
         Camera3d::default(),
         Transform::from_xyz(0.15, 0.25, 0.45).looking_at(Vec3::new(-0.15, 0.2, -0.1), Vec3::Y),

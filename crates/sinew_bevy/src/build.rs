@@ -43,6 +43,9 @@ pub struct MuscleAttachment {
     pub vertex: Option<u32>,
     /// Or the vertex nearest this world point.
     pub point: Option<Vec3>,
+    /// With `point`: every vertex within this distance of it (a region).
+    /// Units: scene units. `0`: the nearest only.
+    pub radius: f32,
 }
 
 impl MuscleAttachment {
@@ -52,6 +55,7 @@ impl MuscleAttachment {
             bone: Some(bone),
             vertex: Some(vertex),
             point: None,
+            radius: 0.0,
         }
     }
 
@@ -61,6 +65,18 @@ impl MuscleAttachment {
             bone: Some(bone),
             vertex: None,
             point: Some(point),
+            radius: 0.0,
+        }
+    }
+
+    /// Every vertex within `radius` of `point` (at least the nearest) held
+    /// by `bone`: a tendon's end without vertex indices.
+    pub fn region(bone: Entity, point: Vec3, radius: f32) -> Self {
+        Self {
+            bone: Some(bone),
+            vertex: None,
+            point: Some(point),
+            radius,
         }
     }
 }
@@ -195,6 +211,7 @@ pub(crate) fn start_builds(
                 bone,
                 vertex: a.vertex,
                 point: a.point,
+                radius: a.radius,
             });
         }
         if let Some(bone) = missing {

@@ -222,7 +222,7 @@ fn attachment_to_a_missing_bone() {
     desc.attachments = vec![AttachmentDesc {
         bone: Some(3),
         vertex: Some(0),
-        point: None,
+        ..Default::default()
     }];
     assert!(matches!(
         add(desc),

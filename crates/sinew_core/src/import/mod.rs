@@ -403,7 +403,7 @@ pub fn import_model(
                 attachments.push(AttachmentSpec {
                     bone: bone.clone(),
                     vertex: Some(v),
-                    point: None,
+                    ..Default::default()
                 });
             }
         }

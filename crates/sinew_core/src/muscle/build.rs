@@ -63,9 +63,19 @@ impl Muscle {
                 report.into_result(&mesh.source).expect_err("non-manifold"),
             ));
         }
-        // Attachment vertices.
+        // Attachment vertices: one per attachment (its root), plus the rest
+        // of a region's.
         let mut attach_vertices = Vec::with_capacity(attachments.len());
+        let mut held = Vec::with_capacity(attachments.len());
         for (i, a) in attachments.iter().enumerate() {
+            if !(a.radius >= 0.0 && a.radius.is_finite()) {
+                return Err(BuildError::InvalidParameter {
+                    muscle: name.clone(),
+                    parameter: format!("attachments[{i}].radius"),
+                    value: a.radius,
+                    reason: "must be finite and ≥ 0".into(),
+                });
+            }
             let v = match (a.vertex, a.point) {
                 (Some(v), _) => v,
                 (None, Some(point)) => nearest_vertex(&mesh.positions, point),
@@ -87,6 +97,17 @@ impl Muscle {
                 });
             }
             attach_vertices.push(v);
+            held.push((a.bone, v));
+            if let (None, Some(point), true) = (a.vertex, a.point, a.radius > 0.0) {
+                let r2 = a.radius * a.radius;
+                held.extend(
+                    (0..n as u32)
+                        .filter(|&u| {
+                            u != v && mesh.positions[u as usize].distance_squared(point) <= r2
+                        })
+                        .map(|u| (a.bone, u)),
+                );
+            }
         }
         // Roots.
         let root_list: Vec<u32> = match &roots {
@@ -164,8 +185,8 @@ impl Muscle {
             topology: 0,
         };
         muscle.build_own_constraints(closed);
-        for (a, v) in attachments.iter().zip(attach_vertices) {
-            muscle.add_attachment(a.bone, v, &bone_transform);
+        for (bone, v) in held {
+            muscle.add_attachment(bone, v, &bone_transform);
         }
         muscle.pin_attachments();
         muscle.update_activation();

@@ -38,7 +38,7 @@ pub enum Roots {
 }
 
 /// Where a muscle is held.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct AttachmentDesc {
     /// Bone index in the solver, or `None` for a fixed world point.
     pub bone: Option<usize>,
@@ -46,6 +46,10 @@ pub struct AttachmentDesc {
     pub vertex: Option<u32>,
     /// Rest-pose world point used when `vertex` is `None`.
     pub point: Option<Vec3>,
+    /// With `point`: hold every surface vertex within this distance of it
+    /// (a region, e.g. a tendon's end), at least the nearest. `0`: the
+    /// nearest vertex only. Units: scene units. Default: `0`.
+    pub radius: f32,
 }
 
 /// A target of a muscle: a bone with a mesh, or another muscle.

@@ -135,8 +135,16 @@ pub struct AttachmentSpec {
     pub bone: Option<String>,
     /// Held vertex; `None` picks the vertex nearest `point`.
     pub vertex: Option<u32>,
-    /// Rest-pose point used when `vertex` is `None`. Units: m.
+    /// Rest-pose point used when `vertex` is `None`. Units: scene units.
     pub point: Option<Vec3>,
+    /// With `point`: hold every vertex within this distance of it (a
+    /// region), not only the nearest. Units: scene units. Default: `0`.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub radius: f32,
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 /// A muscle in a scene.
@@ -312,6 +320,7 @@ impl Scene {
                     bone,
                     vertex: a.vertex,
                     point: a.point,
+                    radius: a.radius,
                 });
             }
             let mut targets = Vec::new();
