@@ -111,6 +111,8 @@ pub mod prelude {
     pub use crate::events::{
         MuscleBuildError, MuscleBuildFailed, MuscleBuilt, SettingsRejected, SinewLog,
     };
+    #[cfg(feature = "render")]
+    pub use crate::render::TargetFromMesh;
     pub use crate::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
     pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
     #[cfg(feature = "ui")]

@@ -10,6 +10,7 @@ use crate::events::MeshAssetProblem;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
+use sinew_core::closest::{TargetSource, TargetSurface};
 use sinew_core::mesh::{SurfaceMesh, vertex_normals};
 use std::time::Instant;
 
@@ -38,13 +39,67 @@ impl Default for ActivationTint {
 pub struct MuscleMesh(pub Handle<Mesh>);
 
 pub(crate) fn register(app: &mut App) {
-    app.register_type::<ActivationTint>().add_systems(
-        crate::SinewStepSchedule,
-        (
-            (add_muscle_meshes, add_bone_meshes).before(SinewSystems::ReadInputs),
-            (write_muscle_meshes, tint_muscles).in_set(SinewSystems::WriteBack),
-        ),
-    );
+    app.register_type::<ActivationTint>()
+        .register_type::<TargetFromMesh>()
+        .add_systems(
+            crate::SinewStepSchedule,
+            (
+                (add_muscle_meshes, add_bone_meshes).before(SinewSystems::ReadInputs),
+                (write_muscle_meshes, tint_muscles).in_set(SinewSystems::WriteBack),
+            ),
+        )
+        .add_systems(
+            crate::SinewPrepareSchedule,
+            targets_from_meshes.before(SinewSystems::AnimateBones),
+        );
+}
+
+/// Makes any entity with a [`Mesh3d`] a bone muscles can slide on: once its
+/// mesh asset is loaded, the entity gets a [`BoneTarget`] of that mesh (in
+/// the entity's own space, moved with its transform) and, if it has none, a
+/// [`SinewBone`]. Name it in a muscle's targets
+/// ([`crate::build::MuscleBuilder::target`]). A mesh sinew cannot use is
+/// reported in [`crate::events::SinewLog`] and the marker removed.
+#[derive(Component, Clone, Copy, Debug, Default, Reflect)]
+#[reflect(Component, Default)]
+pub struct TargetFromMesh;
+
+fn targets_from_meshes(
+    mut commands: Commands,
+    pending: Query<(Entity, &Mesh3d, Option<&Name>, Has<SinewBone>), With<TargetFromMesh>>,
+    meshes: Option<Res<Assets<Mesh>>>,
+    mut log: ResMut<crate::events::SinewLog>,
+) {
+    let Some(meshes) = meshes else {
+        return;
+    };
+    for (entity, handle, name, is_bone) in &pending {
+        let Some(mesh) = meshes.get(&handle.0) else {
+            continue; // not loaded yet
+        };
+        let name = name.map_or_else(|| format!("{entity}"), |n| n.to_string());
+        let mut e = commands.entity(entity);
+        e.remove::<TargetFromMesh>();
+        match surface_from_mesh(&name, mesh) {
+            Ok(surface) => {
+                let triangles = surface.triangles.clone();
+                let target = TargetSurface::new(
+                    name.clone(),
+                    TargetSource::Bone(0),
+                    surface.positions,
+                    triangles,
+                );
+                e.insert(BoneTarget(target));
+                if !is_bone {
+                    e.insert(SinewBone::new(name));
+                }
+            }
+            Err(problem) => {
+                error!("sinew: mesh of '{name}' cannot be a bone target: {problem}");
+                log.push(format!("no bone target from '{name}': {problem}"));
+            }
+        }
+    }
 }
 
 /// Converts a Bevy triangle mesh into a [`SurfaceMesh`], welding the

@@ -1,7 +1,7 @@
 //! The plug-in tells the app what happened: a muscle built, a build that
 //! failed (with a typed error), settings rejected — as entity events for
-//! observers, as messages, and in the panel's log; and what the panel's
-//! Reset does to a hand-built muscle.
+//! observers, as messages, and in the panel's log; what the panel's Reset
+//! does to a hand-built muscle; and a mesh entity made a bone.
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
@@ -205,4 +205,58 @@ fn reset_puts_a_hand_built_muscle_back_as_it_was_built() {
     *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Playing;
     app.update();
     assert!(positions(&app).iter().all(|p| p.is_finite()));
+}
+
+#[test]
+fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
+    let mut app = app();
+    app.add_plugins(bevy::asset::AssetPlugin::default())
+        .init_asset::<Mesh>();
+    let ball = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(Sphere::new(0.02).mesh().ico(3).unwrap());
+    // A ball just under the oval (the oval is 2.5 cm thick): 1 mm gap.
+    let bone = app
+        .world_mut()
+        .spawn((
+            Name::new("ball"),
+            Mesh3d(ball),
+            TargetFromMesh,
+            Transform::from_xyz(0.0, -0.0125 - 0.021, 0.0),
+        ))
+        .id();
+    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
+    let muscle = app
+        .world_mut()
+        .spawn(
+            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
+                .roots(Roots::LongestAxisTips)
+                .attach(MuscleAttachment::region(
+                    bone,
+                    Vec3::new(-0.03, 0.0, 0.0),
+                    0.005,
+                ))
+                .target(bone),
+        )
+        .id();
+    update_until(&mut app, |app| {
+        app.world().get::<MuscleState>(muscle).is_some()
+    });
+    app.update();
+    assert!(app.world().get::<SinewBone>(bone).is_some());
+    let target = &app
+        .world()
+        .get::<BoneTarget>(bone)
+        .expect("a bone target")
+        .0;
+    assert!(
+        target.triangles.len() > 100,
+        "{} triangles",
+        target.triangles.len()
+    );
+    let state = app.world().get::<MuscleState>(muscle).unwrap();
+    let sliding = &state.muscle.constraints.sliding;
+    let touching = sliding.connected.iter().filter(|&&c| c).count();
+    assert!(touching > 0, "no oval vertex slides on the ball");
 }
