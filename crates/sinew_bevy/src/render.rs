@@ -64,9 +64,18 @@ pub(crate) fn register(app: &mut App) {
 #[reflect(Component, Default)]
 pub struct TargetFromMesh;
 
+/// An entity waiting to become a bone: its mesh, name, and whether it is a
+/// bone already.
+type PendingTarget = (
+    Entity,
+    &'static Mesh3d,
+    Option<&'static Name>,
+    Has<SinewBone>,
+);
+
 fn targets_from_meshes(
     mut commands: Commands,
-    pending: Query<(Entity, &Mesh3d, Option<&Name>, Has<SinewBone>), With<TargetFromMesh>>,
+    pending: Query<PendingTarget, With<TargetFromMesh>>,
     meshes: Option<Res<Assets<Mesh>>>,
     mut log: ResMut<crate::events::SinewLog>,
 ) {
