@@ -3,6 +3,8 @@
 //! observers, as messages, and in the panel's log; what the panel's Reset
 //! does to a hand-built muscle; and a mesh entity made a bone.
 
+mod common;
+
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
 use sinew_core::glam::Vec3 as CoreVec3;
@@ -10,27 +12,7 @@ use sinew_core::mesh::primitives::thesis_oval;
 use sinew_core::muscle::{MuscleParams, Roots};
 use std::sync::{Arc, Mutex};
 
-fn app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::transform::TransformPlugin,
-        SinewPlugin::default().every_update(),
-    ));
-    app
-}
-
-/// Updates until `done` holds (builds run on the async pool), at most 2 s.
-fn update_until(app: &mut App, done: impl Fn(&App) -> bool) {
-    for _ in 0..400 {
-        app.update();
-        if done(app) {
-            return;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    panic!("timed out");
-}
+use common::app;
 
 #[test]
 fn a_built_muscle_is_announced_to_observers_and_in_the_log() {
@@ -41,18 +23,11 @@ fn a_built_muscle_is_announced_to_observers_and_in_the_log() {
         seen_by_observer.lock().unwrap().push(built.entity);
     });
     let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
-    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
     let muscle = app
         .world_mut()
-        .spawn((
-            Name::new("oval"),
-            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
-                .roots(Roots::LongestAxisTips)
-                .attach(MuscleAttachment::vertex(bone, 0))
-                .params(MuscleParams::default()),
-        ))
+        .spawn((Name::new("oval"), common::oval_on(bone)))
         .id();
-    update_until(&mut app, |app| {
+    common::update_until(&mut app, |app| {
         app.world().get::<MuscleState>(muscle).is_some()
     });
     app.update();
@@ -92,7 +67,7 @@ fn a_failed_build_is_a_typed_error_for_observers_and_the_log() {
             MuscleSource::File("no/such/file.obj".into(), Default::default()),
         ))
         .id();
-    update_until(&mut app, |app| {
+    common::update_until(&mut app, |app| {
         [refused, missing]
             .iter()
             .all(|&e| app.world().get::<BuildFailed>(e).is_some())
@@ -158,17 +133,8 @@ fn reset_puts_a_hand_built_muscle_back_as_it_was_built() {
     let mut app = app();
     *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Paused;
     let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
-    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
-    let muscle = app
-        .world_mut()
-        .spawn(
-            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
-                .roots(Roots::LongestAxisTips)
-                .attach(MuscleAttachment::vertex(bone, 0))
-                .params(MuscleParams::default()),
-        )
-        .id();
-    update_until(&mut app, |app| {
+    let muscle = app.world_mut().spawn(common::oval_on(bone)).id();
+    common::update_until(&mut app, |app| {
         app.world().get::<MuscleState>(muscle).is_some()
     });
     let positions = |app: &App| {
@@ -240,7 +206,7 @@ fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
                 .target(bone),
         )
         .id();
-    update_until(&mut app, |app| {
+    common::update_until(&mut app, |app| {
         app.world().get::<MuscleState>(muscle).is_some()
     });
     app.update();

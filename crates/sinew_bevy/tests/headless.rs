@@ -2,12 +2,11 @@
 //! driver bit for bit, and activation, bones moved by systems, method
 //! switches and despawns behave.
 
+mod common;
+
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
-use sinew_core::animation::TransformKey;
 use sinew_core::glam::Vec3 as CoreVec3;
-use sinew_core::mesh::primitives::thesis_oval;
-use sinew_core::muscle::{MuscleParams, Roots};
 use sinew_core::scene::{Scene, builtin};
 use sinew_core::{Solver, SweepSchedule};
 use std::path::{Path, PathBuf};
@@ -19,15 +18,7 @@ fn asset(path: &str) -> PathBuf {
         .join(path)
 }
 
-fn app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::transform::TransformPlugin,
-        SinewPlugin::default().every_update(),
-    ));
-    app
-}
+use common::app;
 
 fn spawn_scene(app: &mut App, scene: SinewScene) -> Entity {
     app.world_mut()
@@ -154,21 +145,7 @@ fn global_sweeps_give_the_bits_of_muscle_by_muscle_runs() {
 
 #[test]
 fn bevy_and_plain_drivers_agree_with_an_animated_bone() {
-    // P2 with its ground plane keyframed: rising and tilting over a second.
-    let mut scene = builtin("P2").unwrap();
-    let ground = scene.bones.iter_mut().find(|b| b.name == "ground").unwrap();
-    ground.track.keys = vec![
-        TransformKey {
-            time: 0.0,
-            translation: CoreVec3::ZERO,
-            rotation: Quat::IDENTITY,
-        },
-        TransformKey {
-            time: 1.0,
-            translation: CoreVec3::new(0.0, 0.02, 0.0),
-            rotation: Quat::from_rotation_z(0.2),
-        },
-    ];
+    let scene = common::p2_with_moving_ground();
     let (mut plain, mut app, root) = both_drivers(scene, Path::new("."));
     step_both(&mut plain, &mut app, 90);
     assert_same_bits(&plain, &app, root);
@@ -221,24 +198,11 @@ fn a_bone_moved_by_a_system_drags_its_muscle_the_same_frame() {
     let mut app = app();
     app.add_systems(Update, move_hook);
     let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
-    let mesh = thesis_oval(CoreVec3::ZERO).build("oval").unwrap();
-    let muscle = app
-        .world_mut()
-        .spawn(
-            MuscleBuilder::new("oval", MuscleSource::Mesh(mesh))
-                .roots(Roots::LongestAxisTips)
-                .attach(MuscleAttachment::vertex(bone, 0))
-                .params(MuscleParams::default()),
-        )
-        .id();
+    let muscle = app.world_mut().spawn(common::oval_on(bone)).id();
     // The build runs on the async pool: wait for it without stepping far.
-    for _ in 0..200 {
-        app.update();
-        if app.world().get::<MuscleState>(muscle).is_some() {
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    common::update_until(&mut app, |app| {
+        app.world().get::<MuscleState>(muscle).is_some()
+    });
     let start = positions(&app, muscle)[0];
     while app.world().resource::<SinewClock>().frame < 10 {
         app.update();

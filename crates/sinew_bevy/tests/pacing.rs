@@ -4,33 +4,20 @@
 //! the plain driver); an app that falls behind runs at most the capped
 //! steps and reports the time it dropped.
 
+mod common;
+
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use sinew_bevy::prelude::*;
-use sinew_core::animation::TransformKey;
-use sinew_core::glam::Vec3 as CoreVec3;
-use sinew_core::scene::{Scene, builtin};
+use sinew_core::scene::Scene;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-/// P2 with its ground plane keyframed (rising and tilting over a second)
-/// and its muscle contracting: a scene whose inputs move every step.
+/// P2 with its ground moving and its muscle contracting: a scene whose
+/// inputs move every step.
 fn scene() -> Scene {
-    let mut scene = builtin("P2").unwrap();
-    let ground = scene.bones.iter_mut().find(|b| b.name == "ground").unwrap();
-    ground.track.keys = vec![
-        TransformKey {
-            time: 0.0,
-            translation: CoreVec3::ZERO,
-            rotation: Quat::IDENTITY,
-        },
-        TransformKey {
-            time: 1.0,
-            translation: CoreVec3::new(0.0, 0.02, 0.0),
-            rotation: Quat::from_rotation_z(0.2),
-        },
-    ];
+    let mut scene = common::p2_with_moving_ground();
     scene.muscles[0].params.activation = 0.4;
     scene
 }

@@ -100,15 +100,17 @@ pub(crate) fn animate_skeletons(
     }
 }
 
-/// A bone target added since the last step starts where its bone was.
+/// A bone target added since the last step starts where its bone was (a
+/// bone new this frame: where propagation put it), so that muscles linked
+/// in this step find it there.
 pub(crate) fn place_new_targets(
-    mut new_targets: Query<(&BonePose, &mut BoneTarget), Added<BoneTarget>>,
+    mut new_targets: Query<(&BonePose, &GlobalTransform, &mut BoneTarget), Added<BoneTarget>>,
 ) {
-    for (pose, mut target) in &mut new_targets {
+    for (pose, global, mut target) in &mut new_targets {
         let at = if pose.initialized {
             pose.current
         } else {
-            Affine3A::IDENTITY
+            global.affine()
         };
         target.0.set_transform(at);
     }

@@ -219,49 +219,64 @@ impl Muscle {
 /// The Fiber constraints of `m`: one per polygon edge of its surface, at
 /// the edge's rest length, shortened along the fibres with activation.
 pub fn fiber_edges(m: &Muscle) -> DistanceBatch {
-    let mut batch = DistanceBatch {
-        compliance: m.params.compliance.fiber,
-        ..Default::default()
-    };
     let edges = m.mesh.edges.iter().copied();
-    batch.activation = Some(push_at_rest(&mut batch, edges, &m.rest, &m.fibers));
-    batch
+    distances_at_rest(m, m.params.compliance.fiber, true, edges)
 }
 
 /// The Branch constraints of `m`: one per branch of its internal
 /// structure (none without one), following activation when
 /// [`MuscleParams::branch_follows_activation`] is set.
 pub fn branch_links(m: &Muscle) -> DistanceBatch {
-    let mut batch = DistanceBatch {
-        compliance: m.params.compliance.branch,
-        ..Default::default()
-    };
-    if m.params.internal.enabled && !m.structure.points.is_empty() {
-        let first = m.surface_count as u32;
-        let branches = (m.structure.branches.iter()).map(|&[a, b]| [first + a, first + b]);
-        let act = push_at_rest(&mut batch, branches, &m.rest, &m.fibers);
-        if m.params.branch_follows_activation {
-            batch.activation = Some(act);
-        }
-    }
-    batch
+    let first = m.surface_count as u32;
+    let branches = (m.structure.branches.iter()).map(|&[a, b]| [first + a, first + b]);
+    let follows = m.params.branch_follows_activation;
+    internal_distances(m, m.params.compliance.branch, follows, branches)
 }
 
 /// The Internal constraints of `m`: each surface vertex to its internal
 /// point (none without an internal structure), following activation when
 /// [`MuscleParams::internal_follows_activation`] is set.
 pub fn internal_links(m: &Muscle) -> DistanceBatch {
+    let first = m.surface_count as u32;
+    let points = &m.structure.vertex_point;
+    let links = (0..first).map(|v| [v, first + points[v as usize]]);
+    let follows = m.params.internal_follows_activation;
+    internal_distances(m, m.params.compliance.internal, follows, links)
+}
+
+/// Distance constraints between `pairs` of the internal structure's
+/// particles, or none when `m` has no structure.
+fn internal_distances(
+    m: &Muscle,
+    compliance: f32,
+    follows_activation: bool,
+    pairs: impl Iterator<Item = [u32; 2]>,
+) -> DistanceBatch {
+    if m.params.internal.enabled && !m.structure.points.is_empty() {
+        distances_at_rest(m, compliance, follows_activation, pairs)
+    } else {
+        DistanceBatch {
+            compliance,
+            ..Default::default()
+        }
+    }
+}
+
+/// A batch of distance constraints between `pairs` at their rest lengths,
+/// whose rest lengths follow activation when `follows_activation`.
+fn distances_at_rest(
+    m: &Muscle,
+    compliance: f32,
+    follows_activation: bool,
+    pairs: impl Iterator<Item = [u32; 2]>,
+) -> DistanceBatch {
     let mut batch = DistanceBatch {
-        compliance: m.params.compliance.internal,
+        compliance,
         ..Default::default()
     };
-    if m.params.internal.enabled && !m.structure.points.is_empty() {
-        let first = m.surface_count as u32;
-        let links = (0..first).map(|v| [v, first + m.structure.vertex_point[v as usize]]);
-        let act = push_at_rest(&mut batch, links, &m.rest, &m.fibers);
-        if m.params.internal_follows_activation {
-            batch.activation = Some(act);
-        }
+    let act = push_at_rest(&mut batch, pairs, &m.rest, &m.fibers);
+    if follows_activation {
+        batch.activation = Some(act);
     }
     batch
 }
