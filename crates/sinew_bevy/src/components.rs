@@ -73,6 +73,24 @@ pub struct BoneTarget(pub TargetSurface);
 #[derive(Component, Clone, Debug, Default, PartialEq)]
 pub struct BoneTrack(pub TransformTrack);
 
+impl BoneTrack {
+    /// `base` posed by the track at time `t` (rotation and translation
+    /// from the track, `base`'s scale kept), or `None` for a track with no
+    /// keys (it leaves the bone where it is). What the plug-in writes to
+    /// the bone's `Transform`, and what a step earlier in an update reads.
+    pub fn transform_at(&self, t: f32, base: &Transform) -> Option<Transform> {
+        if self.0.keys.is_empty() {
+            return None;
+        }
+        let (rotation, translation) = self.0.sample_parts(t);
+        Some(Transform {
+            rotation,
+            translation,
+            ..*base
+        })
+    }
+}
+
 /// A skeleton (joint tree with keyframed joint values, from a scene) that
 /// poses bones: each `(entity, body)` pair gets the body's world frame.
 #[derive(Component, Clone, Debug)]

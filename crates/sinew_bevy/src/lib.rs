@@ -460,7 +460,7 @@ fn run_step(world: &mut World) {
         let time = world.resource::<SinewClock>().time;
         let mut ctx = world.resource_mut::<StepContext>();
         ctx.step_of_update = k;
-        ctx.end_time = time + ctx.settings.dt * ctx.settings.time_scale;
+        ctx.end_time = time + ctx.settings.step_time();
         world.resource_mut::<SinewTimings>().start_step();
         world.run_schedule(SinewStepSchedule);
     }

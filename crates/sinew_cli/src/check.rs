@@ -124,7 +124,7 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     }
     let seconds = start.elapsed().as_secs_f64();
     let mut out = String::new();
-    let dt = solver.settings.dt * solver.settings.time_scale;
+    let dt = solver.settings.step_time();
     let motion_end = scene.motion_end();
     writeln!(
         out,

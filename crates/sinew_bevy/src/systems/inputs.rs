@@ -53,12 +53,11 @@ pub(crate) fn plan_update(
     mut clock: ResMut<SinewClock>,
     mut ctx: ResMut<StepContext>,
 ) {
-    let s = &ctx.settings;
-    let steps = pacing.steps(*state, time.delta(), s.dt, &mut clock);
+    let steps = pacing.steps(*state, time.delta(), ctx.settings.dt, &mut clock);
     // The steps' end times, added as the steps will add them.
     let mut end_time = clock.time;
     for _ in 0..steps {
-        end_time += s.dt * s.time_scale;
+        end_time += ctx.settings.step_time();
     }
     ctx.end_time = end_time;
     ctx.steps_this_update = steps;
@@ -71,12 +70,9 @@ pub(crate) fn animate_bone_tracks(
     mut bones: Query<(&BoneTrack, &mut Transform)>,
 ) {
     for (track, mut transform) in &mut bones {
-        if track.0.keys.is_empty() {
-            continue;
+        if let Some(posed) = track.transform_at(ctx.end_time, &transform) {
+            *transform = posed;
         }
-        let (rotation, translation) = track.0.sample_parts(ctx.end_time);
-        transform.rotation = rotation;
-        transform.translation = translation;
     }
 }
 
@@ -150,13 +146,9 @@ pub(crate) fn read_bones(
         }
         let now = if last {
             global.affine()
-        } else if let Some((track, transform)) = track.filter(|(t, _)| !t.0.keys.is_empty()) {
-            let (rotation, translation) = track.0.sample_parts(ctx.end_time);
-            let local = Transform {
-                rotation,
-                translation,
-                ..*transform
-            };
+        } else if let Some(local) =
+            track.and_then(|(track, base)| track.transform_at(ctx.end_time, base))
+        {
             match parent.and_then(|p| parents.get(p.parent()).ok()) {
                 Some(parent) => parent.mul_transform(local).affine(),
                 None => GlobalTransform::from(local).affine(),
@@ -210,7 +202,7 @@ pub(crate) fn read_activation(
             muscle.activation = curve.0.sample(ctx.end_time);
         }
     }
-    let dt = ctx.settings.dt * ctx.settings.time_scale;
+    let dt = ctx.settings.step_time();
     for mut rig in &mut rigs {
         let rig = &mut *rig;
         poses.clear();

@@ -157,7 +157,7 @@ impl RunMetrics {
     /// Starts measuring `solver` in its current (rest) state.
     pub fn new(solver: &Solver, depth: f32) -> Self {
         let n = solver.muscles().len();
-        let dt = solver.settings.dt * solver.settings.time_scale;
+        let dt = solver.settings.step_time();
         Self {
             frames: 0,
             first_non_finite: None,
@@ -329,7 +329,7 @@ impl RunMetrics {
     /// Velocities and accelerations of the surface vertices in each muscle's
     /// first attached bone's frame, by differences over frames.
     fn observe_motion(&mut self, solver: &Solver, strains: &[(f32, f32)]) {
-        let dt = solver.settings.dt * solver.settings.time_scale;
+        let dt = solver.settings.step_time();
         let mut local = Vec::with_capacity(self.history[1].len());
         let mut ranges = Vec::with_capacity(solver.muscles().len());
         for m in solver.muscles() {

@@ -77,7 +77,7 @@ impl RunMetrics {
     /// Whether the end of the run counts as at rest: it lies at least
     /// `settle` seconds after `motion_end`, the scene's last motion key.
     pub fn at_rest(&self, solver: &Solver, motion_end: f32, settle: f32) -> bool {
-        let dt = solver.settings.dt * solver.settings.time_scale;
+        let dt = solver.settings.step_time();
         self.frames as f32 * dt >= motion_end + settle - 0.5 * dt
     }
 

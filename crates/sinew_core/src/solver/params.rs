@@ -158,7 +158,7 @@ impl FrameParams {
         let substeps = settings.substeps.max(1);
         Self {
             frame,
-            dt: settings.dt * settings.time_scale,
+            dt: settings.step_time(),
             substeps,
             iterations: settings.iterations.max(1),
             gravity: settings.gravity * settings.length_unit,

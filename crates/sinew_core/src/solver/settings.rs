@@ -196,6 +196,12 @@ impl Default for SolverSettings {
 }
 
 impl SolverSettings {
+    /// Simulated seconds one step covers, `dt × time_scale`: what every
+    /// driver adds to its clock per step and what rates are measured over.
+    pub fn step_time(&self) -> f32 {
+        self.dt * self.time_scale
+    }
+
     /// Rejects NaN and out-of-range values.
     pub fn validate(&self) -> Result<(), BuildError> {
         let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {
