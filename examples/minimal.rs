@@ -1,11 +1,12 @@
-//! One muscle from an OBJ file hanging from a bone under gravity.
+//! One muscle from an OBJ file on a bone, held by its upper tendon and
+//! sliding on the bone under gravity — without a vertex index.
 //!
 //! Run with `cargo run --release --example minimal`.
 
 use bevy::prelude::*;
 use sinew::bevy::prelude::*;
-use sinew::core::mesh::LoadOptions;
 use sinew::core::muscle::Roots;
+use std::f32::consts::FRAC_PI_2;
 
 fn main() {
     App::new()
@@ -16,21 +17,25 @@ fn main() {
         .run();
 }
 
-fn setup(mut commands: Commands) {
-    // The brachialis from the arm scene, held by its upper tendon: every
-    // vertex within 18 mm of its tip.
-    let tip = Vec3::new(-0.166, 0.300, -0.093);
+fn setup(mut commands: Commands) -> Result {
+    // The humerus (its mesh in its own frame, placed as in the arm scene)
+    // and the brachialis; the muscle is held by every vertex within 18 mm
+    // of its upper tip and slides on the bone.
+    let humerus = BoneTarget::load("assets/meshes/myoarm/humerus_r.obj")?;
+    let at = Transform::from_xyz(-0.170, 0.474, -0.0995)
+        .with_rotation(Quat::from_rotation_y(-FRAC_PI_2));
     let bone = commands
-        .spawn((SinewBone::new("hook"), Transform::from_translation(tip)))
+        .spawn((SinewBone::new("humerus"), humerus, at))
         .id();
-    let path = "assets/meshes/myoarm/BRA.obj";
+    let tip = Vec3::new(-0.166, 0.300, -0.093);
     commands.spawn(
         MuscleBuilder::new(
             "brachialis",
-            MuscleSource::File(path.into(), LoadOptions::default()),
+            MuscleSource::file("assets/meshes/myoarm/BRA.obj"),
         )
         .roots(Roots::LongestAxisTips)
-        .attach(MuscleAttachment::region(bone, tip, 0.018)),
+        .attach(MuscleAttachment::region(bone, tip, 0.018))
+        .target(bone),
     );
     commands.spawn((
         Camera3d::default(),
@@ -40,4 +45,5 @@ fn setup(mut commands: Commands) {
         DirectionalLight::default(),
         Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
+    Ok(())
 }

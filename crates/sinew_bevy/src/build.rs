@@ -2,13 +2,14 @@
 //!
 //! Spawn an entity with a [`MuscleBuilder`]; the plug-in builds the muscle
 //! (internal structure, fibres, constraints) on Bevy's async compute pool
-//! and, when it is done, inserts [`MuscleState`], [`MuscleSnapshot`],
-//! [`MuscleTargets`], [`AttachmentBones`] and (if absent) [`Muscle`]. The
-//! frame never waits for a build. A build that fails leaves a [`BuildFailed`]
+//! and, when it is done, inserts [`MuscleState`], [`MuscleSnapshot`] and
+//! (if absent) [`Muscle`], and spawns its attachment and connection
+//! entities ([`crate::relations`]). The frame never waits for a build. A build that fails leaves a [`BuildFailed`]
 //! with the reason and logs it.
 
 use crate::components::*;
 use crate::events::{MuscleBuildError, MuscleBuildFailed, MuscleBuilt};
+use crate::relations::{spawn_attachments, spawn_connections};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
 use sinew_core::closest::{TargetSource, TargetSurface};
@@ -31,6 +32,14 @@ pub enum MuscleSource {
     /// build starts once the asset is loaded.
     #[cfg(feature = "render")]
     Handle(Handle<Mesh>),
+}
+
+impl MuscleSource {
+    /// An OBJ or STL file loaded with the default options (welded, in the
+    /// file's units).
+    pub fn file(path: impl Into<PathBuf>) -> Self {
+        Self::File(path.into(), LoadOptions::default())
+    }
 }
 
 /// Where a muscle is held: a vertex (or the vertex nearest `point`) fixed to
@@ -237,7 +246,7 @@ pub(crate) fn start_builds(
                 mesh,
                 roots,
                 attachments,
-                // Targets are the driver's business (`MuscleTargets`).
+                // Targets are the driver's business (connection entities).
                 targets: Vec::<TargetRef>::new(),
                 params,
                 maps: Default::default(),
@@ -285,14 +294,11 @@ pub(crate) fn finish_builds(
                 let live = muscle
                     .cloned()
                     .unwrap_or_else(|| Muscle::from_params(&built.params));
-                e.insert((
-                    live,
-                    muscle_snapshot(&built),
-                    MuscleTargets(std::mem::take(&mut build.targets)),
-                    AttachmentBones(std::mem::take(&mut build.bones)),
-                    MuscleAtBuild(built.clone()),
-                    MuscleState::new(built),
-                ));
+                e.insert((live, muscle_snapshot(&built), MuscleAtBuild(built.clone())));
+                let bones = std::mem::take(&mut build.bones);
+                spawn_attachments(&mut commands, entity, &built, |b| bones[b]);
+                spawn_connections(&mut commands, entity, build.targets.drain(..));
+                commands.entity(entity).insert(MuscleState::new(built));
                 commands.write_message(MuscleBuilt { entity });
                 commands.trigger(MuscleBuilt { entity });
             }

@@ -1,16 +1,20 @@
 //! Components: bones and their target meshes, muscles with their parameters
 //! and built state, activation drivers.
 
-pub use crate::compliance::Compliance;
+use crate::constraint_table::SetsSeen;
+pub use crate::constraint_table::{Compliance, ConstraintSet, ConstraintSets};
 use bevy::prelude::*;
+use sinew_core::MeshError;
 use sinew_core::animation::{Curve, TransformTrack};
-use sinew_core::closest::TargetSurface;
+use sinew_core::closest::{TargetSource, TargetSurface};
 use sinew_core::constraints::FiberMode as CoreFiberMode;
 use sinew_core::glam::Affine3A;
+use sinew_core::mesh::{LoadOptions, SurfaceMesh};
 use sinew_core::muscle::{Compliances, Muscle as CoreMuscle, MuscleParams};
 use sinew_core::sensor::ActivationRig;
 use sinew_core::skeleton::SkeletonRig;
 use sinew_core::solver::MuscleWorkspace;
+use std::path::Path;
 
 /// A bone: a kinematic body muscles attach to and slide on. Its pose is its
 /// [`GlobalTransform`], read after transform propagation in the same frame.
@@ -67,6 +71,29 @@ impl BonePose {
 /// The plug-in moves it with the bone every substep.
 #[derive(Component, Clone, Debug)]
 pub struct BoneTarget(pub TargetSurface);
+
+impl BoneTarget {
+    /// A target from an OBJ or STL file, its vertices in the bone's frame
+    /// (scene units; degenerate faces of scanned bones are dropped). For a
+    /// bone whose mesh is also rendered, `TargetFromMesh` (feature `render`)
+    /// makes one from its `Mesh3d`.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, MeshError> {
+        let path = path.as_ref();
+        let options = LoadOptions {
+            drop_degenerate_faces: true,
+            ..Default::default()
+        };
+        let mesh = SurfaceMesh::load(path, &options)?;
+        let name = path.file_stem().map_or_else(
+            || path.display().to_string(),
+            |s| s.to_string_lossy().into(),
+        );
+        let mut target =
+            TargetSurface::new(name, TargetSource::Bone(0), mesh.positions, mesh.triangles);
+        target.set_transform(Affine3A::IDENTITY);
+        Ok(Self(target))
+    }
+}
 
 /// Keyframed animation of a bone (from a scene): the plug-in writes its
 /// [`Transform`] for the end time of the coming step, before propagation.
@@ -240,7 +267,7 @@ impl Muscle {
 /// batches, maps — the plain model the kernels (`sinew_core`'s) work on.
 /// What the solver derives from it lives next to it in [`SolverWorkspace`].
 #[derive(Component, Clone, Debug)]
-#[require(SolverWorkspace)]
+#[require(SolverWorkspace, ConstraintSets, SetsSeen)]
 pub struct MuscleState {
     /// The core muscle.
     pub muscle: CoreMuscle,
@@ -248,19 +275,31 @@ pub struct MuscleState {
     pub(crate) linked: bool,
     /// The last parameters found invalid (reported once).
     pub(crate) rejected: Option<Muscle>,
-    /// Pose of each attachment bone at the current substep (kept when a
-    /// bone goes away).
+    /// The attachment entities in place and their bones, in the order of
+    /// [`crate::relations::Attachments`]: the core's bone index `k` is the
+    /// `k`-th one's bone.
+    pub(crate) attached: Vec<(Entity, Option<Entity>)>,
+    /// The place the next attachment takes in the muscle's list.
+    pub(crate) next_attachment: u64,
+    /// Pose of each attachment's bone at the current substep (kept when a
+    /// bone goes away within a step).
     pub(crate) bone_poses: Vec<Affine3A>,
+    /// The targets Sliding / Soft / Hard are linked to, in order.
+    pub(crate) connected: Vec<Entity>,
 }
 
 impl MuscleState {
-    /// Wraps a built muscle; its target links are made on the next frame.
+    /// Wraps a built muscle; its attachment entities and target links are
+    /// read on the next step.
     pub fn new(muscle: CoreMuscle) -> Self {
         Self {
+            next_attachment: muscle.attachments.len() as u64,
             muscle,
             linked: false,
             rejected: None,
+            attached: Vec::new(),
             bone_poses: Vec::new(),
+            connected: Vec::new(),
         }
     }
 
@@ -270,7 +309,7 @@ impl MuscleState {
     }
 
     /// Asks for Sliding / Soft / Hard to be rebuilt from the current
-    /// geometry on the next frame (after editing [`MuscleTargets`]).
+    /// geometry on the next step.
     pub fn relink(&mut self) {
         self.linked = false;
     }
@@ -283,20 +322,6 @@ impl MuscleState {
 /// views ([`MuscleWorkspace::plan`]).
 #[derive(Component, Clone, Debug, Default)]
 pub struct SolverWorkspace(pub MuscleWorkspace);
-
-/// What a muscle slides on, in order: entities with a [`BoneTarget`] or other
-/// muscles (their [`MuscleSnapshot`]). An edit relinks the muscle on the
-/// next frame; entities that disappear are dropped.
-#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
-#[reflect(Component, Default)]
-pub struct MuscleTargets(pub Vec<Entity>);
-
-/// The bone entity behind each bone index the muscle's attachments use
-/// (`sinew_core` attachments name bones by index). A missing entity leaves
-/// its attachments where they were.
-#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
-#[reflect(Component, Default)]
-pub struct AttachmentBones(pub Vec<Entity>);
 
 /// A muscle as a target for other muscles: its surface as it was at the end
 /// of the last iteration. Maintained by the plug-in.

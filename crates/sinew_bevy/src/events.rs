@@ -1,5 +1,6 @@
 //! What the plug-in tells the app: a muscle was built or could not be
-//! (with a typed [`MuscleBuildError`]), the settings were rejected. Each is
+//! (with a typed [`MuscleBuildError`]), attached, detached, an attachment
+//! could not be made, the settings were rejected. Each is
 //! an entity event for observers (`app.add_observer(|built: On<MuscleBuilt>| …)`)
 //! and a message for systems that read them in bulk ([`SinewLog`] keeps the
 //! last ones for the panel).
@@ -24,12 +25,22 @@ pub enum MuscleBuildError {
         reason: MeshAssetProblem,
     },
     /// An attachment names an entity that is not there (or not a bone).
-    #[error("muscle '{muscle}': attachment bone {bone} does not exist")]
+    #[error("muscle '{muscle}': attachment bone {bone} does not exist or is not a SinewBone")]
     MissingBone {
         /// The muscle.
         muscle: String,
         /// The entity the attachment names.
         bone: Entity,
+    },
+    /// An attachment entity ([`crate::relations::AttachmentOf`]) has no
+    /// [`crate::relations::AttachmentRegion`]: it does not say which
+    /// vertices it holds.
+    #[error("muscle '{muscle}': attachment {attachment} has no AttachmentRegion")]
+    NoRegion {
+        /// The muscle.
+        muscle: String,
+        /// The attachment entity.
+        attachment: Entity,
     },
     /// The core refused the muscle (parameters, maps, mesh topology).
     #[error(transparent)]
@@ -67,6 +78,43 @@ pub struct MuscleBuildFailed {
     pub error: Arc<MuscleBuildError>,
 }
 
+/// An attachment entity now holds its vertices of a muscle (a new one, or
+/// one re-targeted to another bone).
+#[derive(EntityEvent, Message, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MuscleAttached {
+    /// The muscle.
+    pub entity: Entity,
+    /// The attachment entity.
+    pub attachment: Entity,
+    /// The bone that holds it (`None`: the world).
+    pub bone: Option<Entity>,
+}
+
+/// An attachment no longer holds a muscle: it was despawned (or its bone
+/// was), or moved to another muscle. The vertices it held are free.
+#[derive(EntityEvent, Message, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MuscleDetached {
+    /// The muscle.
+    pub entity: Entity,
+    /// The attachment entity (possibly despawned).
+    pub attachment: Entity,
+    /// The bone that held it (`None`: the world).
+    pub bone: Option<Entity>,
+}
+
+/// An attachment entity could not be resolved against its muscle (a
+/// vertex out of range, a bad radius, a bone that is not a
+/// [`crate::components::SinewBone`]); it holds nothing until it is fixed.
+#[derive(EntityEvent, Message, Clone, Debug)]
+pub struct AttachmentRejected {
+    /// The muscle.
+    pub entity: Entity,
+    /// The attachment entity.
+    pub attachment: Entity,
+    /// Why.
+    pub error: Arc<MuscleBuildError>,
+}
+
 /// The settings were rejected; the simulation keeps the last valid ones.
 #[derive(Event, Message, Clone, Debug)]
 pub struct SettingsRejected {
@@ -98,9 +146,16 @@ impl SinewLog {
 /// Writes the plug-in's messages of this frame into the [`SinewLog`].
 pub(crate) fn log_messages(
     mut log: ResMut<SinewLog>,
-    mut built: MessageReader<MuscleBuilt>,
-    mut failed: MessageReader<MuscleBuildFailed>,
-    mut rejected: MessageReader<SettingsRejected>,
+    (mut built, mut failed, mut rejected): (
+        MessageReader<MuscleBuilt>,
+        MessageReader<MuscleBuildFailed>,
+        MessageReader<SettingsRejected>,
+    ),
+    (mut attached, mut detached, mut refused): (
+        MessageReader<MuscleAttached>,
+        MessageReader<MuscleDetached>,
+        MessageReader<AttachmentRejected>,
+    ),
     names: Query<&Name>,
 ) {
     let name = |e: Entity| {
@@ -116,5 +171,23 @@ pub(crate) fn log_messages(
     }
     for m in rejected.read() {
         log.push(format!("settings rejected: {}", m.error));
+    }
+    let holder = |bone: Option<Entity>| bone.map_or_else(|| "the world".into(), name);
+    for m in attached.read() {
+        log.push(format!("{} attached to {}", name(m.entity), holder(m.bone)));
+    }
+    for m in detached.read() {
+        log.push(format!(
+            "{} detached from {}",
+            name(m.entity),
+            holder(m.bone)
+        ));
+    }
+    for m in refused.read() {
+        log.push(format!(
+            "attachment of {} refused: {}",
+            name(m.entity),
+            m.error
+        ));
     }
 }

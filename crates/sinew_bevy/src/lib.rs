@@ -75,12 +75,13 @@
 //! Without features the plug-in runs headless with `MinimalPlugins`.
 
 pub mod build;
-mod compliance;
 pub mod components;
+mod constraint_table;
 #[cfg(feature = "debug")]
 pub mod debug;
 pub mod events;
 mod pacing;
+pub mod relations;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod scene;
@@ -102,14 +103,19 @@ pub use systems::{StepContext, simulation_running};
 pub mod prelude {
     pub use crate::build::{BuildFailed, MuscleAttachment, MuscleBuilder, MuscleSource};
     pub use crate::components::{
-        ActivationCurve, AttachmentBones, BonePose, BoneTarget, BoneTrack, Compliance, FiberMode,
-        Muscle, MuscleSnapshot, MuscleState, MuscleTargets, SensorRig, SinewBone, SkeletonDriver,
-        SkeletonFrames, SolverWorkspace,
+        ActivationCurve, BonePose, BoneTarget, BoneTrack, Compliance, ConstraintSet,
+        ConstraintSets, FiberMode, Muscle, MuscleSnapshot, MuscleState, SensorRig, SinewBone,
+        SkeletonDriver, SkeletonFrames, SolverWorkspace,
     };
     #[cfg(feature = "debug")]
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
     pub use crate::events::{
-        MuscleBuildError, MuscleBuildFailed, MuscleBuilt, SettingsRejected, SinewLog,
+        AttachmentRejected, MuscleAttached, MuscleBuildError, MuscleBuildFailed, MuscleBuilt,
+        MuscleDetached, SettingsRejected, SinewLog,
+    };
+    pub use crate::relations::{
+        AttachedTo, AttachmentOf, AttachmentRegion, Attachments, ConnectedFrom, ConnectionOf,
+        Connections, ConnectsTo, HeldAttachments, HeldVertices,
     };
     #[cfg(feature = "render")]
     pub use crate::render::TargetFromMesh;
@@ -307,6 +313,9 @@ impl Plugin for SinewPlugin {
             .add_message::<events::MuscleBuilt>()
             .add_message::<events::MuscleBuildFailed>()
             .add_message::<events::SettingsRejected>()
+            .add_message::<events::MuscleAttached>()
+            .add_message::<events::MuscleDetached>()
+            .add_message::<events::AttachmentRejected>()
             .init_resource::<events::SinewLog>()
             .register_type::<SinewSettings>()
             .register_type::<SinewClock>()
@@ -315,8 +324,16 @@ impl Plugin for SinewPlugin {
             .register_type::<SinewBone>()
             .register_type::<BonePose>()
             .register_type::<Muscle>()
-            .register_type::<MuscleTargets>()
-            .register_type::<AttachmentBones>();
+            .register_type::<ConstraintSets>()
+            .register_type::<relations::AttachmentOf>()
+            .register_type::<relations::Attachments>()
+            .register_type::<relations::AttachedTo>()
+            .register_type::<relations::HeldAttachments>()
+            .register_type::<relations::AttachmentRegion>()
+            .register_type::<relations::ConnectionOf>()
+            .register_type::<relations::Connections>()
+            .register_type::<relations::ConnectsTo>()
+            .register_type::<relations::ConnectedFrom>();
         for label in [
             SinewPrepareSchedule.intern(),
             SinewStepSchedule.intern(),
@@ -398,13 +415,19 @@ impl Plugin for SinewPlugin {
                     systems::read_bones,
                     systems::read_activation,
                     systems::sync_muscles,
+                    systems::sync_attachments,
                     systems::link_muscles,
                     systems::plan_step,
                 )
                     .chain()
                     .in_set(SinewSystems::ReadInputs),
                 systems::run_substeps.in_set(SinewSystems::Substeps),
-                systems::finish_timings.in_set(SinewSystems::WriteBack),
+                (
+                    constraint_table::report_constraint_sets,
+                    systems::finish_timings,
+                )
+                    .chain()
+                    .in_set(SinewSystems::WriteBack),
             ),
         )
         .add_systems(

@@ -10,6 +10,7 @@
 
 use crate::build::muscle_snapshot;
 use crate::components::*;
+use crate::relations::{spawn_attachments, spawn_connections};
 use crate::settings::SinewSettings;
 use bevy::asset::io::Reader;
 use bevy::asset::io::file::FileAssetReader;
@@ -202,23 +203,19 @@ fn spawn(commands: &mut Commands, root: Entity, scene: &SinewScene) -> SpawnedSc
         let spec = scene.scene.muscles.get(i);
         let curve = parts.curves.get(i).cloned().flatten();
         let driven = curve.is_some() || spec.is_some_and(|s| !s.drive.is_empty());
-        let targets = m
-            .targets
-            .iter()
-            .map(|t| match *t {
-                TargetRef::Bone(b) => bones[b],
-                TargetRef::Muscle(o) => muscles[o],
-            })
-            .collect();
+        let targets = m.targets.iter().map(|t| match *t {
+            TargetRef::Bone(b) => bones[b],
+            TargetRef::Muscle(o) => muscles[o],
+        });
         let mut live = Muscle::from_params(&m.params);
         live.driven = driven;
+        spawn_attachments(commands, entity, m, |b| bones[b]);
+        spawn_connections(commands, entity, targets);
         let mut e = commands.entity(entity);
         e.insert((
             Name::new(m.name.clone()),
             live,
             muscle_snapshot(m),
-            MuscleTargets(targets),
-            AttachmentBones(bones.clone()),
             MuscleState::new(m.clone()),
         ));
         if let Some(curve) = curve {

@@ -173,6 +173,7 @@ fn reset_puts_a_hand_built_muscle_back_as_it_was_built() {
     assert!(positions(&app).iter().all(|p| p.is_finite()));
 }
 
+#[cfg(feature = "render")]
 #[test]
 fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
     let mut app = app();

@@ -6,6 +6,7 @@ use super::{SolverWorkers, StepContext, ValidSettings, pair, surface_of};
 use crate::components::*;
 use crate::events::SettingsRejected;
 use crate::pacing::SimulationPacing;
+use crate::relations::{Connections, ConnectsTo};
 use crate::settings::{SimulationState, SinewClock, SinewSettings, SinewTimings};
 use bevy::prelude::*;
 use sinew_core::animation::interpolate_rigid;
@@ -252,10 +253,13 @@ pub(crate) fn sync_muscles(
     clock.lap(&mut timings.step.read_inputs);
 }
 
-/// Drops targets that are gone, lays out the step's target table (every
-/// targeted entity; each muscle's workspace indexes it), marks which
-/// muscles are targeted, and links Sliding / Soft / Hard for muscles that
-/// are new or whose targets changed (core: `Solver::prepare`).
+/// Reads each muscle's targets from its connections
+/// ([`crate::relations::Connections`], in order; targets that are not a
+/// bone with a [`BoneTarget`] or a muscle are left out until they are),
+/// lays out the step's target table (every targeted entity; each muscle's
+/// workspace indexes it), marks which muscles are targeted, and links
+/// Sliding / Soft / Hard for muscles that are new or whose targets changed
+/// (core: `Solver::prepare`).
 pub(crate) fn link_muscles(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
@@ -264,8 +268,9 @@ pub(crate) fn link_muscles(
         Entity,
         &mut MuscleState,
         &mut SolverWorkspace,
-        &mut MuscleTargets,
+        Option<&Connections>,
     )>,
+    connections: Query<&ConnectsTo>,
     bones: Query<&BoneTarget>,
     mut snapshots: Query<&mut MuscleSnapshot>,
 ) {
@@ -274,23 +279,29 @@ pub(crate) fn link_muscles(
         table,
         slots,
         surfaces,
+        targets,
         ..
     } = &mut *workers;
     table.clear();
     slots.clear();
-    for (entity, mut state, mut ws, mut targets) in &mut muscles {
-        let keep = |&e: &Entity| e != entity && (bones.contains(e) || snapshots.contains(e));
-        if targets.is_changed() {
+    for (entity, mut state, mut ws, links) in &mut muscles {
+        let usable = |&e: &Entity| e != entity && (bones.contains(e) || snapshots.contains(e));
+        targets.clear();
+        targets.extend(
+            links
+                .into_iter()
+                .flat_map(|l| l.iter())
+                .filter_map(|c| connections.get(c).ok().map(|t| t.0))
+                .filter(usable),
+        );
+        if *targets != state.connected {
+            state.connected.clone_from(targets);
             state.linked = false;
         }
-        if !targets.0.iter().all(keep) {
-            targets.0.retain(keep);
+        if state.muscle.constraints.sliding.targets != targets.len() {
             state.linked = false;
         }
-        if state.muscle.constraints.sliding.targets != targets.0.len() {
-            state.linked = false;
-        }
-        let ids = targets.0.iter().map(|&e| {
+        let ids = targets.iter().map(|&e| {
             *slots.entry(e).or_insert_with(|| {
                 table.push(e);
                 TargetId::new(table.len() - 1)

@@ -6,8 +6,11 @@
 //! [`IterationParams`]) and the same worker pool semantics, so both drivers
 //! give the same bits.
 
+mod attach;
 mod inputs;
 mod solve;
+
+pub(crate) use attach::*;
 
 pub(crate) use inputs::*;
 pub(crate) use solve::*;
@@ -100,6 +103,8 @@ pub(crate) struct SolverWorkers {
     table: Vec<Entity>,
     /// Each table entity's index.
     slots: EntityHashMap<TargetId>,
+    /// One muscle's targets, as its connections name them (scratch).
+    targets: Vec<Entity>,
     /// Stands in the table for a target despawned during the step (its
     /// muscles run the rest of the step without contacts; it is dropped
     /// from their targets on the next one).
@@ -115,6 +120,7 @@ impl Default for SolverWorkers {
             snapshots: BorrowBuffer::default(),
             table: Vec::new(),
             slots: EntityHashMap::default(),
+            targets: Vec::new(),
             gone: TargetSurface::new("despawned", TargetSource::Bone(0), Vec::new(), Vec::new()),
         }
     }

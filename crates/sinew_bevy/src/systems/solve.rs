@@ -87,18 +87,22 @@ pub(crate) fn begin_substep(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
     mut workers: ResMut<SolverWorkers>,
-    mut muscles: Query<(&mut MuscleState, &mut SolverWorkspace, &AttachmentBones)>,
+    mut muscles: Query<(&mut MuscleState, &mut SolverWorkspace)>,
     poses: Query<&BonePose>,
 ) {
     let mut watch = Stopwatch::new(ctx.settings.timers);
-    for (mut state, _, attached) in &mut muscles {
+    for (mut state, _) in &mut muscles {
         let state = &mut *state;
-        // A bone that has gone keeps its last pose: its attachments stay put.
-        state
-            .bone_poses
-            .resize(attached.0.len(), Affine3A::IDENTITY);
-        for (cached, &bone) in state.bone_poses.iter_mut().zip(&attached.0) {
-            if let Ok(p) = poses.get(bone) {
+        // A bone that goes within the step keeps its last pose (its
+        // attachments are dropped on the next step).
+        let MuscleState {
+            bone_poses,
+            attached,
+            ..
+        } = state;
+        bone_poses.resize(attached.len(), Affine3A::IDENTITY);
+        for (cached, &(_, bone)) in bone_poses.iter_mut().zip(attached.iter()) {
+            if let Some(p) = bone.and_then(|b| poses.get(b).ok()) {
                 *cached = p.substep;
             }
         }
@@ -111,7 +115,7 @@ pub(crate) fn begin_substep(
     }
     watch.lap(&mut timings.step.update_targets);
     let workers = &mut *workers;
-    let pairs = muscles.iter_mut().map(|(s, ws, _)| pair((s, ws)));
+    let pairs = muscles.iter_mut().map(pair);
     workers.pairs.with(pairs, |muscles| {
         passes::begin_substep_all(&workers.pool, muscles, &ctx.substep);
     });

@@ -68,46 +68,9 @@ impl Muscle {
         let mut attach_vertices = Vec::with_capacity(attachments.len());
         let mut held = Vec::with_capacity(attachments.len());
         for (i, a) in attachments.iter().enumerate() {
-            if !(a.radius >= 0.0 && a.radius.is_finite()) {
-                return Err(BuildError::InvalidParameter {
-                    muscle: name.clone(),
-                    parameter: format!("attachments[{i}].radius"),
-                    value: a.radius,
-                    reason: "must be finite and ≥ 0".into(),
-                });
-            }
-            let v = match (a.vertex, a.point) {
-                (Some(v), _) => v,
-                (None, Some(point)) => nearest_vertex(&mesh.positions, point),
-                (None, None) => {
-                    return Err(BuildError::InvalidParameter {
-                        muscle: name.clone(),
-                        parameter: format!("attachments[{i}]"),
-                        value: f32::NAN,
-                        reason: "an attachment needs a vertex or a point".into(),
-                    });
-                }
-            };
-            if v as usize >= n {
-                return Err(BuildError::AttachmentVertexOutOfRange {
-                    muscle: name.clone(),
-                    attachment: i,
-                    vertex: v,
-                    count: n,
-                });
-            }
-            attach_vertices.push(v);
-            held.push((a.bone, v));
-            if let (None, Some(point), true) = (a.vertex, a.point, a.radius > 0.0) {
-                let r2 = a.radius * a.radius;
-                held.extend(
-                    (0..n as u32)
-                        .filter(|&u| {
-                            u != v && mesh.positions[u as usize].distance_squared(point) <= r2
-                        })
-                        .map(|u| (a.bone, u)),
-                );
-            }
+            let vertices = a.held_vertices(&mesh.positions, &name, i)?;
+            attach_vertices.push(vertices[0]);
+            held.extend(vertices.into_iter().map(|v| (a.bone, v)));
         }
         // Roots.
         let root_list: Vec<u32> = match &roots {

@@ -257,6 +257,17 @@ impl MuscleConstraints {
         c
     }
 
+    /// Counts per type of the constraints that act: those not switched off
+    /// (a Sliding, Soft or Hard of weight 0 or out of every target's reach).
+    pub fn active_counts(&self) -> ConstraintCounts {
+        let mut c = ConstraintCounts::default();
+        self.for_each_batch(|kind, b| {
+            c.0[kind as usize] = (0..b.count()).filter(|&i| !b.is_off(i)).count();
+        });
+        c.0[ConstraintKind::Volume as usize] = usize::from(self.volume.is_some());
+        c
+    }
+
     /// Moves the multipliers of the batched types out (for a parallel
     /// sweep), indexed by [`ConstraintKind`]; the batches keep empty ones
     /// until [`MuscleConstraints::restore_lambdas`].

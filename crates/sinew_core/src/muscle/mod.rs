@@ -52,6 +52,59 @@ pub struct AttachmentDesc {
     pub radius: f32,
 }
 
+impl AttachmentDesc {
+    /// The surface vertices this attachment holds on a mesh with vertex
+    /// `positions`, its root (the given vertex, or the one nearest `point`)
+    /// first, then the rest of its region. `muscle` and `index` (its place
+    /// in the muscle's list) name it in errors: a vertex out of range, a
+    /// radius that is negative or not finite, neither vertex nor point.
+    pub fn held_vertices(
+        &self,
+        positions: &[Vec3],
+        muscle: &str,
+        index: usize,
+    ) -> Result<Vec<u32>, BuildError> {
+        let n = positions.len();
+        if !(self.radius >= 0.0 && self.radius.is_finite()) {
+            return Err(BuildError::InvalidParameter {
+                muscle: muscle.into(),
+                parameter: format!("attachments[{index}].radius"),
+                value: self.radius,
+                reason: "must be finite and ≥ 0".into(),
+            });
+        }
+        let root = match (self.vertex, self.point) {
+            (Some(v), _) => v,
+            (None, Some(point)) if point.is_finite() => nearest_vertex(positions, point),
+            (None, _) => {
+                return Err(BuildError::InvalidParameter {
+                    muscle: muscle.into(),
+                    parameter: format!("attachments[{index}]"),
+                    value: f32::NAN,
+                    reason: "an attachment needs a vertex or a finite point".into(),
+                });
+            }
+        };
+        if root as usize >= n {
+            return Err(BuildError::AttachmentVertexOutOfRange {
+                muscle: muscle.into(),
+                attachment: index,
+                vertex: root,
+                count: n,
+            });
+        }
+        let mut held = vec![root];
+        if let (None, Some(point), true) = (self.vertex, self.point, self.radius > 0.0) {
+            let r2 = self.radius * self.radius;
+            held.extend(
+                (0..n as u32)
+                    .filter(|&u| u != root && positions[u as usize].distance_squared(point) <= r2),
+            );
+        }
+        Ok(held)
+    }
+}
+
 /// A target of a muscle: a bone with a mesh, or another muscle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TargetRef {
@@ -216,31 +269,78 @@ impl Muscle {
         vertex: u32,
         bone_transform: impl Fn(usize) -> Affine3A,
     ) {
-        let m = bone.map(&bone_transform).unwrap_or(Affine3A::IDENTITY);
-        let inv = m.inverse();
+        let pose = bone.map(&bone_transform).unwrap_or(Affine3A::IDENTITY);
+        let attachment = self.attachment_at(bone, vertex, pose);
+        self.push_attachment(attachment);
+        self.touch_topology();
+    }
+
+    /// The attachment that holds surface vertex `vertex` where it is now
+    /// (its start-of-frame position `x`) to `bone` posed at `bone_pose`
+    /// (world from bone; the identity for the world), with the internal
+    /// point nearest it. Panics if `vertex` is not a surface vertex.
+    pub fn attachment_at(
+        &self,
+        bone: Option<usize>,
+        vertex: u32,
+        bone_pose: Affine3A,
+    ) -> Attachment {
+        assert!(
+            (vertex as usize) < self.surface_count,
+            "attachment vertex {vertex} of muscle '{}' is not a surface vertex",
+            self.name
+        );
+        let inv = bone_pose.inverse();
         let pv = self.x[vertex as usize];
         let internal_particle = (!self.structure.points.is_empty()).then(|| {
             let k = nearest_vertex(&self.structure.points, pv);
             ParticleId::new(self.surface_count as u32 + k)
         });
         let pi = internal_particle.map(|i| self.x[i.index()]).unwrap_or(pv);
-        let vertex = ParticleId::new(vertex);
-        let att = Attachment {
+        Attachment {
             bone,
-            vertex,
+            vertex: ParticleId::new(vertex),
             internal_particle,
             vertex_local: inv.transform_point3(pv),
             internal_local: inv.transform_point3(pi),
-        };
+        }
+    }
+
+    /// Replaces every attachment with `attachments` (made by
+    /// [`Muscle::attachment_at`] or kept from [`Muscle::attachments`]), in
+    /// that order: particles no longer held get their masses back, the new
+    /// ones are pinned as their compliance says. What a driver calls when
+    /// a muscle is attached, detached or re-targeted at run time.
+    pub fn set_attachments(&mut self, attachments: impl IntoIterator<Item = Attachment>) {
+        for a in &self.attachments {
+            let v = a.vertex.index();
+            self.w[v] = self.free_w[v];
+            if let Some(ip) = a.internal_particle {
+                self.w[ip.index()] = self.free_w[ip.index()];
+            }
+        }
+        self.attachments.clear();
+        self.constraints.attach = Default::default();
+        self.constraints.branch_attach = Default::default();
+        for a in attachments {
+            self.push_attachment(a);
+        }
+        self.pin_attachments();
+        self.touch_topology();
+    }
+
+    /// Adds `a` and its constraints (goals where the particles are now).
+    fn push_attachment(&mut self, a: Attachment) {
         let c = &mut self.constraints;
+        let pv = self.x[a.vertex.index()];
         c.attach
-            .push(vertex, pv, 0.0, self.params.compliance.attach);
-        if let Some(ip) = internal_particle {
+            .push(a.vertex, pv, 0.0, self.params.compliance.attach);
+        if let Some(ip) = a.internal_particle {
+            let pi = self.x[ip.index()];
             c.branch_attach
                 .push(ip, pi, 0.0, self.params.compliance.branch_attach);
         }
-        self.attachments.push(att);
-        self.touch_topology();
+        self.attachments.push(a);
     }
 
     /// Applies the current activation: clamps it (reporting once), then updates
