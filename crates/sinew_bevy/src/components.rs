@@ -4,13 +4,16 @@
 use crate::constraint_table::SetsSeen;
 pub use crate::constraint_table::{Compliance, ConstraintSet, ConstraintSets};
 use bevy::prelude::*;
+use sinew_core::BuildError;
 use sinew_core::MeshError;
 use sinew_core::animation::{Curve, TransformTrack};
 use sinew_core::closest::{TargetSource, TargetSurface};
 use sinew_core::constraints::FiberMode as CoreFiberMode;
 use sinew_core::glam::Affine3A;
 use sinew_core::mesh::{LoadOptions, SurfaceMesh};
-use sinew_core::muscle::{Compliances, Muscle as CoreMuscle, MuscleParams};
+use sinew_core::muscle::{
+    Compliances, ConnectionWeights as CoreWeights, Muscle as CoreMuscle, MuscleParams,
+};
 use sinew_core::sensor::ActivationRig;
 use sinew_core::skeleton::SkeletonRig;
 use sinew_core::solver::MuscleWorkspace;
@@ -164,8 +167,48 @@ impl From<CoreFiberMode> for FiberMode {
     }
 }
 
-/// A muscle and its live parameters. Edits take effect on the next frame
-/// without a rebuild. The built particles and constraints are in
+/// Default weights of a muscle's three target connections (as the core's
+/// [`CoreWeights`], reflectable): a vertex's Sliding, Soft and Hard
+/// compliances are divided by them (0 switches one off), normalised per
+/// vertex when `normalize` is set.
+#[derive(Clone, Copy, Debug, PartialEq, Reflect)]
+pub struct Weights {
+    /// Sliding weight. Range `[0, ∞)`. Default: `1.0`.
+    pub sliding: f32,
+    /// Soft weight. Range `[0, ∞)`. Default: `0.5`.
+    pub soft: f32,
+    /// Hard weight. Range `[0, ∞)`. Default: `0.25`.
+    pub hard: f32,
+    /// Divide the three by their sum per vertex. Default: `true`.
+    pub normalize: bool,
+}
+
+impl From<CoreWeights> for Weights {
+    fn from(w: CoreWeights) -> Self {
+        Self {
+            sliding: w.sliding,
+            soft: w.soft,
+            hard: w.hard,
+            normalize: w.normalize,
+        }
+    }
+}
+
+impl From<Weights> for CoreWeights {
+    fn from(w: Weights) -> Self {
+        Self {
+            sliding: w.sliding,
+            soft: w.soft,
+            hard: w.hard,
+            normalize: w.normalize,
+        }
+    }
+}
+
+/// A muscle and its live parameters: every parameter that needs no
+/// rebuild. Edits take effect on the next step; a value the core refuses
+/// ([`MuscleParams::validate`]) is reported once and the last valid
+/// parameters are kept. The built particles and constraints are in
 /// [`MuscleState`], which the plug-in inserts once the muscle is built.
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default)]
@@ -178,16 +221,27 @@ pub struct Muscle {
     /// Compliance per constraint type.
     pub compliance: Compliance,
     /// Activation-independent volume gain `G` (1 keeps the rest volume).
+    /// Range `(0, ∞)`. Default: `1`.
     pub volume_gain: f32,
-    /// Volume gain at full activation `R` (the overpressure of a flexed muscle).
+    /// Volume gain at full activation `R` (the overpressure of a flexed
+    /// muscle). Range `(0, ∞)`. Default: the core's.
     pub activation_volume_gain: f32,
     /// Iterations for this muscle; `None` uses [`crate::SinewSettings::iterations`].
     pub iterations: Option<u32>,
     /// Fibre rest-length formula.
     pub fiber_mode: FiberMode,
     /// Velocity damping rate: the velocity keeps `e^(−c h)` over `h`
-    /// seconds. Units: 1/s. Range `[0, 1000]`.
+    /// seconds. Units: 1/s. Range `[0, 1000]`. Default: `3.08`.
     pub damping: f32,
+    /// Default Sliding / Soft / Hard weights (per-vertex maps override
+    /// them).
+    pub weights: Weights,
+    /// Fraction of fibre length lost at full activation. Range `[0, 1]`.
+    /// Default: `0.35`.
+    pub max_contraction: f32,
+    /// Activation of the modelled (rest) shape, clamped to ≤ 0.95. Range
+    /// `[0, 1]`. Default: `0`.
+    pub rest_activation: f32,
 }
 
 impl Default for Muscle {
@@ -208,11 +262,15 @@ impl Muscle {
             iterations: p.iterations,
             fiber_mode: p.fiber_mode.into(),
             damping: p.damping,
+            weights: p.weights.into(),
+            max_contraction: p.max_contraction,
+            rest_activation: p.rest_activation,
         }
     }
 
-    /// Writes these values into `p`; returns whether a compliance changed
-    /// (the batches then need [`CoreMuscle::apply_compliances`]).
+    /// Writes these values into `p`; returns whether a compliance or a
+    /// weight changed (the batches then need
+    /// [`CoreMuscle::apply_compliances`]).
     pub fn write_to(&self, p: &mut MuscleParams) -> bool {
         p.activation = self.activation;
         p.volume.gain = self.volume_gain;
@@ -220,46 +278,34 @@ impl Muscle {
         p.iterations = self.iterations;
         p.fiber_mode = self.fiber_mode.into();
         p.damping = self.damping;
-        let compliance: Compliances = self.compliance.into();
-        let changed = compliance != p.compliance;
+        p.max_contraction = self.max_contraction;
+        p.rest_activation = self.rest_activation;
+        let (compliance, weights): (Compliances, CoreWeights) =
+            (self.compliance.into(), self.weights.into());
+        let changed = compliance != p.compliance || weights != p.weights;
         p.compliance = compliance;
+        p.weights = weights;
         changed
     }
 
-    /// The first out-of-range value, as `(parameter, value, reason)`.
-    pub fn invalid(&self) -> Option<(&'static str, f32, &'static str)> {
-        let c = &self.compliance;
-        let compliances = [
-            c.fiber,
-            c.volume,
-            c.internal,
-            c.branch,
-            c.attach,
-            c.branch_attach,
-            c.sliding,
-            c.soft,
-            c.hard,
-        ];
-        if let Some(&v) = compliances.iter().find(|v| v.is_nan() || **v < 0.0) {
-            return Some(("compliance", v, "must be ≥ 0"));
-        }
-        if !(self.volume_gain > 0.0 && self.volume_gain.is_finite()) {
-            return Some(("volume_gain", self.volume_gain, "must be > 0"));
-        }
-        if !(self.activation_volume_gain > 0.0 && self.activation_volume_gain.is_finite()) {
-            return Some((
-                "activation_volume_gain",
-                self.activation_volume_gain,
-                "must be > 0",
-            ));
-        }
-        if !(0.0..=1000.0).contains(&self.damping) {
-            return Some(("damping", self.damping, "must be in [0, 1000] (1/s)"));
-        }
+    /// `p` with these values written in, if the core accepts them
+    /// ([`MuscleParams::validate`]; the activation is left to its clamp).
+    /// `muscle` names the muscle in the error.
+    pub fn validated(&self, p: &MuscleParams, muscle: &str) -> Result<MuscleParams, BuildError> {
+        let mut params = p.clone();
+        self.write_to(&mut params);
+        let activation = std::mem::replace(&mut params.activation, 0.0);
+        params.validate(muscle)?;
         if self.iterations == Some(0) {
-            return Some(("iterations", 0.0, "must be ≥ 1"));
+            return Err(BuildError::InvalidParameter {
+                muscle: muscle.into(),
+                parameter: "iterations".into(),
+                value: 0.0,
+                reason: "must be ≥ 1".into(),
+            });
         }
-        None
+        params.activation = activation;
+        Ok(params)
     }
 }
 
@@ -273,8 +319,8 @@ pub struct MuscleState {
     pub muscle: CoreMuscle,
     /// Whether Sliding / Soft / Hard are linked to the current targets.
     pub(crate) linked: bool,
-    /// The last parameters found invalid (reported once).
-    pub(crate) rejected: Option<Muscle>,
+    /// Why the last parameters were refused (reported once).
+    pub(crate) rejected: Option<String>,
     /// The attachment entities in place and their bones, in the order of
     /// [`crate::relations::Attachments`]: the core's bone index `k` is the
     /// `k`-th one's bone.

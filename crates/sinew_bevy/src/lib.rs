@@ -84,6 +84,7 @@ mod pacing;
 pub mod relations;
 #[cfg(feature = "render")]
 pub mod render;
+pub mod save;
 pub mod scene;
 pub mod settings;
 mod systems;
@@ -105,7 +106,7 @@ pub mod prelude {
     pub use crate::components::{
         ActivationCurve, BonePose, BoneTarget, BoneTrack, Compliance, ConstraintSet,
         ConstraintSets, FiberMode, Muscle, MuscleSnapshot, MuscleState, SensorRig, SinewBone,
-        SkeletonDriver, SkeletonFrames, SolverWorkspace,
+        SkeletonDriver, SkeletonFrames, SolverWorkspace, Weights,
     };
     #[cfg(feature = "debug")]
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
@@ -119,6 +120,7 @@ pub mod prelude {
     };
     #[cfg(feature = "render")]
     pub use crate::render::TargetFromMesh;
+    pub use crate::save::{SaveScene, SceneSaveError, SceneSaveFailed, SceneSaved};
     pub use crate::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
     pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
     #[cfg(feature = "ui")]
@@ -316,6 +318,9 @@ impl Plugin for SinewPlugin {
             .add_message::<events::MuscleAttached>()
             .add_message::<events::MuscleDetached>()
             .add_message::<events::AttachmentRejected>()
+            .add_message::<save::SaveScene>()
+            .add_message::<save::SceneSaved>()
+            .add_message::<save::SceneSaveFailed>()
             .init_resource::<events::SinewLog>()
             .register_type::<SinewSettings>()
             .register_type::<SinewClock>()
@@ -362,7 +367,9 @@ impl Plugin for SinewPlugin {
             (
                 run_prepare.in_set(SinewSystems::Prepare),
                 run_step.in_set(SinewSystems::Step),
-                events::log_messages.after(SinewSystems::Step),
+                (save::save_scenes, events::log_messages)
+                    .chain()
+                    .after(SinewSystems::Step),
             ),
         )
         .configure_sets(

@@ -135,10 +135,14 @@ pub(crate) fn register(app: &mut App) {
             .get_added_plugins::<AssetPlugin>()
             .first()
             .map_or_else(|| "assets".to_string(), |p| p.file_path.clone());
+        let root = FileAssetReader::get_base_path().join(folder);
         app.init_asset::<SinewScene>()
-            .register_asset_loader(SinewSceneLoader {
-                root: FileAssetReader::get_base_path().join(folder),
-            });
+            .insert_resource(crate::save::SceneFolder(root.clone()))
+            .register_asset_loader(SinewSceneLoader { root })
+            .add_systems(
+                crate::SinewPrepareSchedule,
+                crate::save::respawn_changed_scenes.before(spawn_scenes),
+            );
     }
 }
 

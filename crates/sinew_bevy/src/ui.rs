@@ -7,6 +7,8 @@
 
 use crate::ResetSimulation;
 use crate::components::{FiberMode, Muscle, MuscleState};
+use crate::save::SaveScene;
+use crate::scene::SinewSceneRoot;
 use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
 use bevy::prelude::*;
 pub use bevy_egui;
@@ -44,7 +46,8 @@ fn panel(
     mut state: ResMut<SimulationState>,
     clock: Res<SinewClock>,
     timings: Res<SinewTimings>,
-    mut reset: MessageWriter<ResetSimulation>,
+    (mut reset, mut save): (MessageWriter<ResetSimulation>, MessageWriter<SaveScene>),
+    scenes: Query<(Entity, &SinewSceneRoot)>,
     mut muscles: Query<(Entity, &mut Muscle, Option<&MuscleState>)>,
     log: Res<crate::events::SinewLog>,
     #[cfg(feature = "debug")] mut view: Option<ResMut<crate::debug::SinewDebugView>>,
@@ -56,6 +59,24 @@ fn panel(
         .vscroll(true)
         .show(ctx, |ui| {
             controls(ui, &mut state, &clock, &timings, &mut reset);
+            // Scenes loaded from files are saved back to them, tuned.
+            let files: Vec<Entity> = scenes
+                .iter()
+                .filter(|(_, s)| matches!(s, SinewSceneRoot::Asset(_)))
+                .map(|(e, _)| e)
+                .collect();
+            if !files.is_empty()
+                && ui
+                    .button("💾 Save tuned scene")
+                    .on_hover_text(
+                        "muscle parameters and solver settings, back to the scene's RON file",
+                    )
+                    .clicked()
+            {
+                for root in files {
+                    save.write(SaveScene { root, path: None });
+                }
+            }
             ui.separator();
             egui::CollapsingHeader::new("Solver")
                 .default_open(true)
@@ -257,6 +278,18 @@ fn muscle_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
             .text("overpressure R (gain at a = 1)"),
     );
     ui.add(egui::Slider::new(&mut edit.damping, 0.0..=20.0).text("damping 1/s"));
+    ui.add(egui::Slider::new(&mut edit.max_contraction, 0.0..=0.9).text("max contraction"));
+    ui.add(egui::Slider::new(&mut edit.rest_activation, 0.0..=0.95).text("rest activation"));
+    ui.label("connection weights (per vertex maps override)");
+    let w = &mut edit.weights;
+    for (name, value) in [
+        ("sliding", &mut w.sliding),
+        ("soft", &mut w.soft),
+        ("hard", &mut w.hard),
+    ] {
+        ui.add(egui::Slider::new(value, 0.0..=1.0).text(name));
+    }
+    ui.checkbox(&mut w.normalize, "normalise per vertex");
     let mut own = edit.iterations.is_some();
     ui.horizontal(|ui| {
         ui.checkbox(&mut own, "own iterations");

@@ -379,6 +379,59 @@ fn constraint_sets_are_a_component_that_follows_edits() {
 }
 
 #[test]
+fn weights_contraction_and_rest_activation_are_live() {
+    // P1 (linked to its ground: Soft and Hard tie every vertex to it).
+    let mut app = app();
+    let root = app
+        .world_mut()
+        .spawn(SinewSceneRoot::Built(Arc::new(
+            SinewScene::build(builtin("P1").unwrap(), Path::new(".")).unwrap(),
+        )))
+        .id();
+    app.update();
+    app.update();
+    let muscle = app.world().get::<SpawnedScene>(root).unwrap().muscles[0];
+    assert!(
+        app.world()
+            .get::<ConstraintSets>(muscle)
+            .unwrap()
+            .hard
+            .active
+            > 0
+    );
+    {
+        let mut live = app.world_mut().get_mut::<Muscle>(muscle).unwrap();
+        live.weights.hard = 0.0;
+        live.max_contraction = 0.5;
+        live.rest_activation = 0.2;
+    }
+    app.update();
+    let sets = app.world().get::<ConstraintSets>(muscle).unwrap();
+    assert_eq!(sets.hard.active, 0, "weight 0 switches Hard off");
+    let params = &app
+        .world()
+        .get::<MuscleState>(muscle)
+        .unwrap()
+        .muscle
+        .params;
+    assert_eq!((params.max_contraction, params.rest_activation), (0.5, 0.2));
+    assert_eq!(params.weights.hard, 0.0);
+    // A value the core refuses keeps the last valid ones.
+    app.world_mut()
+        .get_mut::<Muscle>(muscle)
+        .unwrap()
+        .max_contraction = 2.0;
+    app.update();
+    let params = &app
+        .world()
+        .get::<MuscleState>(muscle)
+        .unwrap()
+        .muscle
+        .params;
+    assert_eq!(params.max_contraction, 0.5);
+}
+
+#[test]
 fn relations_and_sets_are_registered_for_reflection() {
     let mut app = app();
     app.update();

@@ -235,18 +235,22 @@ pub(crate) fn sync_muscles(
     let mut clock = Stopwatch::new(ctx.settings.timers);
     for (muscle, mut state) in &mut muscles {
         let state = &mut *state;
-        if let Some((parameter, value, reason)) = muscle.invalid() {
-            if state.rejected.as_ref() != Some(muscle) {
-                warn!(
-                    "sinew: muscle '{}': {parameter} = {value} {reason}; keeping the last valid parameters",
-                    state.muscle.name
-                );
-                state.rejected = Some(muscle.clone());
+        match muscle.validated(&state.muscle.params, &state.muscle.name) {
+            Err(error) => {
+                let error = error.to_string();
+                if state.rejected.as_ref() != Some(&error) {
+                    warn!("sinew: {error}; keeping the last valid parameters");
+                    state.rejected = Some(error);
+                }
             }
-        } else {
-            state.rejected = None;
-            if muscle.write_to(&mut state.muscle.params) {
-                state.muscle.apply_compliances();
+            Ok(params) => {
+                state.rejected = None;
+                let relink = params.compliance != state.muscle.params.compliance
+                    || params.weights != state.muscle.params.weights;
+                state.muscle.params = params;
+                if relink {
+                    state.muscle.apply_compliances();
+                }
             }
         }
     }
