@@ -55,6 +55,7 @@ fn panel(
     let ctx = contexts.ctx_mut()?;
     egui::Window::new("sinew")
         .default_width(330.0)
+        .default_height(690.0)
         .default_pos([10.0, 10.0])
         .vscroll(true)
         .show(ctx, |ui| {
