@@ -16,7 +16,7 @@ use sinew_core::closest::{TargetSource, TargetSurface};
 use sinew_core::glam::Affine3A;
 use sinew_core::mesh::{LoadOptions, SurfaceMesh};
 use sinew_core::muscle::{
-    AttachmentDesc, Muscle as CoreMuscle, MuscleDesc, MuscleParams, Roots, TargetRef,
+    AttachmentDesc, Muscle as CoreMuscle, MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps,
 };
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -106,6 +106,13 @@ pub struct MuscleBuilder {
     pub targets: Vec<Entity>,
     /// Build-time and initial parameters.
     pub params: MuscleParams,
+    /// Per-vertex maps (one value per surface vertex, after welding). A
+    /// [`MuscleSource::Handle`] mesh adds those its vertex attributes
+    /// carry ([`crate::mesh_maps`]); a map given here wins.
+    pub maps: VertexMaps,
+    /// Where a mesh asset's maps come from besides sinew's attributes.
+    #[cfg(feature = "render")]
+    pub maps_from: crate::mesh_maps::MapsFromMesh,
 }
 
 impl MuscleBuilder {
@@ -119,6 +126,9 @@ impl MuscleBuilder {
             attachments: Vec::new(),
             targets: Vec::new(),
             params: MuscleParams::default(),
+            maps: VertexMaps::default(),
+            #[cfg(feature = "render")]
+            maps_from: Default::default(),
         }
     }
 
@@ -143,6 +153,20 @@ impl MuscleBuilder {
     /// Sets the parameters.
     pub fn params(mut self, params: MuscleParams) -> Self {
         self.params = params;
+        self
+    }
+
+    /// Sets the per-vertex maps.
+    pub fn maps(mut self, maps: VertexMaps) -> Self {
+        self.maps = maps;
+        self
+    }
+
+    /// Reads a mesh asset's Sliding / Soft / Hard weights from its vertex
+    /// colours (red, green, blue).
+    #[cfg(feature = "render")]
+    pub fn weights_from_colors(mut self) -> Self {
+        self.maps_from.colors = true;
         self
     }
 }
@@ -175,20 +199,31 @@ pub(crate) fn start_builds(
     #[cfg(feature = "render")] meshes: Option<Res<Assets<Mesh>>>,
 ) {
     for (entity, builder) in &builders {
+        let mut maps = builder.maps.clone();
         let mesh = match &builder.source {
             MuscleSource::File(path, options) => Err((path.clone(), options.clone())),
             MuscleSource::Mesh(mesh) => Ok(mesh.clone()),
             #[cfg(feature = "render")]
             MuscleSource::Handle(handle) => match meshes.as_ref().and_then(|m| m.get(handle)) {
-                Some(mesh) => match crate::render::surface_from_mesh(&builder.name, mesh) {
-                    Ok(mesh) => Ok(mesh),
-                    Err(reason) => {
-                        let muscle = builder.name.clone();
-                        let error = MuscleBuildError::MeshAsset { muscle, reason };
-                        fail(&mut commands, entity, error);
-                        continue;
+                Some(mesh) => {
+                    match crate::mesh_maps::surface_and_maps(&builder.name, mesh, builder.maps_from)
+                    {
+                        Ok((mesh, painted)) => {
+                            maps.sliding = maps.sliding.or(painted.sliding);
+                            maps.soft = maps.soft.or(painted.soft);
+                            maps.hard = maps.hard.or(painted.hard);
+                            maps.fibers = maps.fibers.or(painted.fibers);
+                            maps.mass = maps.mass.or(painted.mass);
+                            Ok(mesh)
+                        }
+                        Err(reason) => {
+                            let muscle = builder.name.clone();
+                            let error = MuscleBuildError::MeshAsset { muscle, reason };
+                            fail(&mut commands, entity, error);
+                            continue;
+                        }
                     }
-                },
+                }
                 None => continue, // not loaded yet
             },
         };
@@ -249,7 +284,7 @@ pub(crate) fn start_builds(
                 // Targets are the driver's business (connection entities).
                 targets: Vec::<TargetRef>::new(),
                 params,
-                maps: Default::default(),
+                maps,
             };
             Ok(CoreMuscle::build(desc, length_unit, |b| poses[b])?)
         });

@@ -80,6 +80,8 @@ mod constraint_table;
 #[cfg(feature = "debug")]
 pub mod debug;
 pub mod events;
+#[cfg(feature = "render")]
+pub mod mesh_maps;
 mod pacing;
 pub mod relations;
 #[cfg(feature = "render")]

@@ -112,25 +112,11 @@ fn targets_from_meshes(
 }
 
 /// Converts a Bevy triangle mesh into a [`SurfaceMesh`], welding the
-/// vertices Bevy splits at UV seams.
+/// vertices Bevy splits at UV seams (its maps:
+/// [`crate::mesh_maps::surface_and_maps`]).
 pub fn surface_from_mesh(name: &str, mesh: &Mesh) -> Result<SurfaceMesh, MeshAssetProblem> {
-    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(MeshAssetProblem::NotTriangles);
-    }
-    let Some(VertexAttributeValues::Float32x3(positions)) =
-        mesh.attribute(Mesh::ATTRIBUTE_POSITION)
-    else {
-        return Err(MeshAssetProblem::NoPositions);
-    };
-    let positions: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
-    let indices: Vec<u32> = match mesh.indices() {
-        Some(i) => i.iter().map(|i| i as u32).collect(),
-        None => (0..positions.len() as u32).collect(),
-    };
-    let polygons: Vec<Vec<u32>> = indices.chunks_exact(3).map(<[u32]>::to_vec).collect();
-    let raw = SurfaceMesh::new(name, positions, &polygons)?;
-    let tolerance = raw.bounding_box_diagonal() * 1e-6;
-    Ok(raw.welded(tolerance).map(|(mesh, _)| mesh)?)
+    let from = crate::mesh_maps::MapsFromMesh::default();
+    Ok(crate::mesh_maps::surface_and_maps(name, mesh, from)?.0)
 }
 
 fn triangle_mesh(positions: &[Vec3], triangles: &[[u32; 3]]) -> Mesh {

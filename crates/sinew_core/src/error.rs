@@ -168,6 +168,21 @@ pub enum BuildError {
         /// Vertex count.
         count: usize,
     },
+    /// A per-vertex map holds a value out of its range (a weight below 0,
+    /// a mass multiplier not above 0, anything not finite).
+    #[error("muscle '{muscle}': per-vertex map '{map}' at vertex {vertex} is {value}: {reason}")]
+    MapValue {
+        /// Muscle name.
+        muscle: String,
+        /// Map name.
+        map: String,
+        /// The vertex.
+        vertex: usize,
+        /// The value (a fibre: its first non-finite component).
+        value: f32,
+        /// The allowed range.
+        reason: String,
+    },
 }
 
 /// A scene could not be read, written or instantiated.

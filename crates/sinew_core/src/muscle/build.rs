@@ -49,6 +49,7 @@ impl Muscle {
                 });
             }
         }
+        maps.validate(&name)?;
         let report = mesh.report();
         let closed = report.is_closed_manifold();
         if params.volume.enabled && !closed && !params.volume.allow_open_mesh {

@@ -130,6 +130,51 @@ pub struct VertexMaps {
     pub mass: Option<Vec<f32>>,
 }
 
+impl VertexMaps {
+    /// Checks every value: weights finite and ≥ 0, mass multipliers
+    /// finite and > 0, fibres finite. `muscle` names the muscle in the
+    /// error, which names the map and the vertex.
+    pub fn validate(&self, muscle: &str) -> Result<(), BuildError> {
+        let bad = |map: &str, vertex: usize, value: f32, reason: &str| BuildError::MapValue {
+            muscle: muscle.into(),
+            map: map.into(),
+            vertex,
+            value,
+            reason: reason.into(),
+        };
+        let weights = [
+            ("sliding", &self.sliding),
+            ("soft", &self.soft),
+            ("hard", &self.hard),
+        ];
+        for (map, values) in weights {
+            let values = values.iter().flatten().enumerate();
+            if let Some((v, &w)) = values.clone().find(|(_, w)| !(w.is_finite() && **w >= 0.0)) {
+                return Err(bad(map, v, w, "a weight must be finite and ≥ 0"));
+            }
+        }
+        let mut masses = self.mass.iter().flatten().enumerate();
+        if let Some((v, &m)) = masses.find(|(_, m)| !(m.is_finite() && **m > 0.0)) {
+            return Err(bad(
+                "mass",
+                v,
+                m,
+                "a mass multiplier must be finite and > 0",
+            ));
+        }
+        let mut fibers = self.fibers.iter().flatten().enumerate();
+        if let Some((v, f)) = fibers.find(|(_, f)| !f.is_finite()) {
+            let value = f
+                .to_array()
+                .into_iter()
+                .find(|c| !c.is_finite())
+                .unwrap_or(f32::NAN);
+            return Err(bad("fibers", v, value, "a fibre must be finite"));
+        }
+        Ok(())
+    }
+}
+
 /// Everything needed to build one muscle.
 #[derive(Clone, Debug)]
 pub struct MuscleDesc {
