@@ -14,7 +14,6 @@ use sinew_core::mesh::{LoadOptions, SurfaceMesh};
 use sinew_core::muscle::{
     Compliances, ConnectionWeights as CoreWeights, Muscle as CoreMuscle, MuscleParams,
 };
-use sinew_core::sensor::ActivationRig;
 use sinew_core::skeleton::SkeletonRig;
 use sinew_core::solver::MuscleWorkspace;
 use std::path::Path;
@@ -383,16 +382,3 @@ pub struct MuscleSnapshot {
 /// [`Muscle::driven`]).
 #[derive(Component, Clone, Debug, PartialEq)]
 pub struct ActivationCurve(pub Curve);
-
-/// Sensors, triggers and activation layers (SPEC §8) that drive muscles:
-/// the rig reads bone index `i` from `bones[i]` and writes muscle index `j`
-/// to `muscles[j]` (when that muscle is [`Muscle::driven`]).
-#[derive(Component, Clone, Debug)]
-pub struct SensorRig {
-    /// The rig.
-    pub rig: ActivationRig,
-    /// Bone entity per bone index.
-    pub bones: Vec<Entity>,
-    /// Muscle entity per muscle index.
-    pub muscles: Vec<Entity>,
-}

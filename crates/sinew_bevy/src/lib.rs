@@ -88,6 +88,7 @@ pub mod relations;
 pub mod render;
 pub mod save;
 pub mod scene;
+pub mod sensors;
 pub mod settings;
 mod systems;
 #[cfg(feature = "ui")]
@@ -107,8 +108,8 @@ pub mod prelude {
     pub use crate::build::{BuildFailed, MuscleAttachment, MuscleBuilder, MuscleSource};
     pub use crate::components::{
         ActivationCurve, BonePose, BoneTarget, BoneTrack, Compliance, ConstraintSet,
-        ConstraintSets, FiberMode, Muscle, MuscleSnapshot, MuscleState, SensorRig, SinewBone,
-        SkeletonDriver, SkeletonFrames, SolverWorkspace, Weights,
+        ConstraintSets, FiberMode, Muscle, MuscleSnapshot, MuscleState, SinewBone, SkeletonDriver,
+        SkeletonFrames, SolverWorkspace, Weights,
     };
     #[cfg(feature = "debug")]
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
@@ -124,6 +125,10 @@ pub mod prelude {
     pub use crate::render::TargetFromMesh;
     pub use crate::save::{SaveScene, SceneSaveError, SceneSaveFailed, SceneSaved};
     pub use crate::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
+    pub use crate::sensors::{
+        ActivationDrive, ReadsSensor, Sensor, SensorInputOf, SensorInputs, SensorReaders,
+        SensorReading, SensorSlot,
+    };
     pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
     #[cfg(feature = "ui")]
     pub use crate::ui::SinewUiPlugin;
@@ -340,7 +345,13 @@ impl Plugin for SinewPlugin {
             .register_type::<relations::ConnectionOf>()
             .register_type::<relations::Connections>()
             .register_type::<relations::ConnectsTo>()
-            .register_type::<relations::ConnectedFrom>();
+            .register_type::<relations::ConnectedFrom>()
+            .register_type::<sensors::SensorReading>()
+            .register_type::<sensors::SensorInputOf>()
+            .register_type::<sensors::SensorInputs>()
+            .register_type::<sensors::ReadsSensor>()
+            .register_type::<sensors::SensorReaders>()
+            .register_type::<sensors::SensorSlot>();
         for label in [
             SinewPrepareSchedule.intern(),
             SinewStepSchedule.intern(),
@@ -423,6 +434,7 @@ impl Plugin for SinewPlugin {
                     systems::place_new_targets,
                     systems::read_bones,
                     systems::read_activation,
+                    sensors::drive_activation,
                     systems::sync_muscles,
                     systems::sync_attachments,
                     systems::link_muscles,

@@ -11,6 +11,7 @@
 use crate::build::muscle_snapshot;
 use crate::components::*;
 use crate::relations::{spawn_attachments, spawn_connections};
+use crate::sensors::{ActivationDrive, ReadsSensor, Sensor, SensorInputOf, SensorSlot};
 use crate::settings::SinewSettings;
 use bevy::asset::io::Reader;
 use bevy::asset::io::file::FileAssetReader;
@@ -19,6 +20,7 @@ use bevy::prelude::*;
 use sinew_core::SolverParts;
 use sinew_core::muscle::TargetRef;
 use sinew_core::scene::Scene;
+use sinew_core::sensor::ActivationRig;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -174,6 +176,53 @@ pub(crate) fn spawn_scenes(
     }
 }
 
+/// Spawns a scene's sensors under `root` (one entity each, reading its own
+/// list of bone entities) and, for every driven muscle, its
+/// [`ActivationDrive`] and one input entity per sensor it reads. Returns
+/// the sensor entities.
+fn spawn_sensors(
+    commands: &mut Commands,
+    root: Entity,
+    rig: ActivationRig,
+    bones: &[Entity],
+    muscles: &[Entity],
+) -> Vec<Entity> {
+    let parts = rig.into_parts();
+    let sensors: Vec<Entity> = parts
+        .sensors
+        .into_iter()
+        .map(|(name, mut tracker)| {
+            let mut used: Vec<usize> = Vec::new();
+            for b in tracker.bones() {
+                if !used.contains(&b) {
+                    used.push(b);
+                }
+            }
+            tracker.remap_bones(|b| used.iter().position(|&u| u == b).expect("listed"));
+            let sensor = Sensor {
+                name: name.clone(),
+                tracker,
+                bones: used.iter().map(|&b| bones[b]).collect(),
+            };
+            commands
+                .spawn((Name::new(name), sensor, ChildOf(root)))
+                .id()
+        })
+        .collect();
+    for (m, mut stack) in parts.stacks {
+        let muscle = muscles[m];
+        for (slot, global) in stack.localize_sensors().into_iter().enumerate() {
+            commands.spawn((
+                SensorInputOf(muscle),
+                ReadsSensor(sensors[global]),
+                SensorSlot(slot),
+            ));
+        }
+        commands.entity(muscle).insert(ActivationDrive(stack));
+    }
+    sensors
+}
+
 /// Spawns the entities of `scene` under `root`.
 fn spawn(commands: &mut Commands, root: Entity, scene: &SinewScene) -> SpawnedScene {
     let parts = &scene.parts;
@@ -239,14 +288,16 @@ fn spawn(commands: &mut Commands, root: Entity, scene: &SinewScene) -> SpawnedSc
             bones: bound,
         });
     }
-    if let Some(rig) = &parts.activation_rig {
-        root_entity.insert(SensorRig {
-            rig: rig.clone(),
-            bones: bones.clone(),
-            muscles: muscles.clone(),
-        });
-    }
-    let entities = bones.iter().chain(&muscles).copied().collect();
+    let sensors = match &parts.activation_rig {
+        Some(rig) => spawn_sensors(commands, root, rig.clone(), &bones, &muscles),
+        None => Vec::new(),
+    };
+    let entities = bones
+        .iter()
+        .chain(&muscles)
+        .chain(&sensors)
+        .copied()
+        .collect();
     SpawnedScene {
         entities,
         bones,

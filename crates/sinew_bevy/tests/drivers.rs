@@ -3,6 +3,8 @@
 //! bit for bit with every method at 1, 2 and 8 threads, and the colour
 //! sweeps across muscles are taken by both.
 
+mod common;
+
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
 use sinew_core::scene::Scene;
@@ -60,12 +62,7 @@ fn run(
         plain_by_color += plain.timings().sweeps_by_color;
         bevy_by_color += app.world().resource::<SinewTimings>().step.sweeps_by_color;
     }
-    let muscles = app
-        .world()
-        .get::<SpawnedScene>(root)
-        .unwrap()
-        .muscles
-        .clone();
+    let muscles = common::scene_muscles(&app, root);
     assert_eq!(muscles.len(), plain.muscles().len());
     let differs = plain.muscles().iter().zip(&muscles).find_map(|(m, &e)| {
         let ecs = &app.world().get::<MuscleState>(e).unwrap().muscle.x;

@@ -43,12 +43,7 @@ fn app_at(hz: f64, pacing: SimulationPacing) -> (App, Entity) {
 
 /// Every muscle's particle positions, as bits.
 fn bits(app: &App, root: Entity) -> Vec<[u32; 3]> {
-    let muscles = app
-        .world()
-        .get::<SpawnedScene>(root)
-        .unwrap()
-        .muscles
-        .clone();
+    let muscles = common::scene_muscles(app, root);
     muscles
         .iter()
         .flat_map(|&m| {

@@ -29,14 +29,6 @@ fn spawned_app(scene: Scene) -> (App, Entity) {
     (app, root)
 }
 
-fn muscles_of(app: &App, root: Entity) -> Vec<Entity> {
-    app.world()
-        .get::<SpawnedScene>(root)
-        .unwrap()
-        .muscles
-        .clone()
-}
-
 /// Saves the scene under `root` to `path`; the `SceneSaved` path.
 fn save(app: &mut App, root: Entity, path: &Path) -> PathBuf {
     let saved = Arc::new(Mutex::new(None));
@@ -53,7 +45,7 @@ fn save(app: &mut App, root: Entity, path: &Path) -> PathBuf {
 #[test]
 fn a_tuned_scene_saves_and_loads_back_exactly() {
     let (mut app, root) = spawned_app(builtin("P3").unwrap());
-    let muscles = muscles_of(&app, root);
+    let muscles = common::scene_muscles(&app, root);
     {
         let mut m = app.world_mut().get_mut::<Muscle>(muscles[0]).unwrap();
         m.compliance.fiber = 3.5e-5;
@@ -95,7 +87,7 @@ fn a_tuned_scene_saves_and_loads_back_exactly() {
     // Loaded back, the muscles have the tuned values; saved again, the
     // same text.
     let (mut again, root) = spawned_app(loaded);
-    for (&e, live) in muscles_of(&again, root).iter().zip(&tuned) {
+    for (&e, live) in common::scene_muscles(&again, root).iter().zip(&tuned) {
         assert_eq!(again.world().get::<Muscle>(e).unwrap(), live);
     }
     let second = temp_file("p3_tuned_again.ron");
@@ -152,7 +144,7 @@ fn a_changed_scene_asset_is_spawned_again() {
         .spawn(SinewSceneRoot::Asset(handle.clone()))
         .id();
     app.update();
-    let before = muscles_of(&app, root);
+    let before = common::scene_muscles(&app, root);
     assert_eq!(before.len(), 1);
     // The file changes (here: the asset is replaced, as a reload does).
     app.world_mut()
@@ -161,7 +153,7 @@ fn a_changed_scene_asset_is_spawned_again() {
         .unwrap();
     app.update();
     app.update();
-    let after = muscles_of(&app, root);
+    let after = common::scene_muscles(&app, root);
     assert_eq!(after.len(), 2, "P3's two muscles");
     assert!(
         after

@@ -10,6 +10,12 @@
 //! triggers, constants and curves into a muscle's activation in order (over,
 //! add, sub, mult, div, clamp); the result is clamped to `[0, 1]`.
 
+mod stack;
+mod tracker;
+
+pub use stack::ActivationStack;
+pub use tracker::SensorTracker;
+
 use crate::animation::Curve;
 use crate::error::SceneError;
 use glam::{Affine3A, Vec3};
@@ -190,162 +196,26 @@ pub enum ActivationLayer {
     },
 }
 
+/// An [`ActivationRig`] taken apart ([`ActivationRig::into_parts`]).
 #[derive(Clone, Debug)]
-struct CompiledPoint {
-    bone: usize,
-    point: Vec3,
-}
-
-impl CompiledPoint {
-    fn world(&self, bones: &[Affine3A]) -> Vec3 {
-        bones[self.bone].transform_point3(self.point)
-    }
-}
-
-#[derive(Clone, Debug)]
-enum CompiledKind {
-    Distance(CompiledPoint, CompiledPoint),
-    Rotation(CompiledPoint, CompiledPoint, CompiledPoint),
-    Linear(CompiledPoint),
-}
-
-/// A sensor's state between frames.
-#[derive(Clone, Debug)]
-struct SensorState {
-    kind: CompiledKind,
-    samples: u32,
-    start: Vec3,
-    last_point: Vec3,
-    last_velocity_vector: Vec3,
-    value: f32,
-    velocity: f32,
-    acceleration: f32,
-}
-
-impl SensorState {
-    fn output(&self, which: SensorOutput) -> f32 {
-        match which {
-            SensorOutput::Value => self.value,
-            SensorOutput::Velocity => self.velocity,
-            SensorOutput::Acceleration => self.acceleration,
-        }
-    }
-
-    fn update(&mut self, bones: &[Affine3A], dt: f32) {
-        let n = self.samples;
-        self.samples = n.saturating_add(1);
-        match &self.kind {
-            CompiledKind::Distance(a, b) => {
-                let d = a.world(bones).distance(b.world(bones));
-                self.scalar(d, n, dt);
-            }
-            CompiledKind::Rotation(a, m, c) => {
-                let mid = m.world(bones);
-                let (u, w) = (a.world(bones) - mid, c.world(bones) - mid);
-                let theta = u.cross(w).length().atan2(u.dot(w));
-                self.scalar(theta, n, dt);
-            }
-            CompiledKind::Linear(p) => {
-                let x = p.world(bones);
-                if n == 0 {
-                    self.start = x;
-                    self.last_point = x;
-                }
-                let v = if n == 0 {
-                    Vec3::ZERO
-                } else {
-                    (x - self.last_point) / dt
-                };
-                let a = if n < 2 {
-                    Vec3::ZERO
-                } else {
-                    (v - self.last_velocity_vector) / dt
-                };
-                self.value = x.distance(self.start);
-                self.velocity = v.length();
-                self.acceleration = a.length();
-                self.last_point = x;
-                self.last_velocity_vector = v;
-            }
-        }
-    }
-
-    fn scalar(&mut self, q: f32, n: u32, dt: f32) {
-        let velocity = if n == 0 { 0.0 } else { (q - self.value) / dt };
-        self.acceleration = if n < 2 {
-            0.0
-        } else {
-            (velocity - self.velocity) / dt
-        };
-        self.velocity = velocity;
-        self.value = q;
-    }
-}
-
-#[derive(Clone, Debug)]
-struct TriggerState {
-    sensor: usize,
-    input: SensorInput,
-    gate: bool,
-    activation: f32,
-}
-
-impl TriggerState {
-    fn update(&mut self, sensors: &[SensorState], dt: f32) -> f32 {
-        let spec = &self.input.trigger;
-        let y = self
-            .input
-            .remap
-            .apply(sensors[self.sensor].output(self.input.output));
-        if y >= spec.threshold_on {
-            self.gate = true;
-        } else if y <= spec.threshold_off {
-            self.gate = false;
-        }
-        let span = (1.0 - spec.threshold_off).max(1e-6);
-        let target = if self.gate {
-            (spec.gain * (y - spec.threshold_off) / span).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let tau = if target > self.activation {
-            spec.attack
-        } else {
-            spec.release
-        };
-        let k = if tau > 0.0 {
-            1.0 - (-dt / tau).exp()
-        } else {
-            1.0
-        };
-        self.activation += k * (target - self.activation);
-        spec.curve
-            .as_ref()
-            .map_or(self.activation, |c| c.sample(self.activation))
-    }
-}
-
-#[derive(Clone, Debug)]
-enum CompiledInput {
-    Trigger(TriggerState),
-    Constant(f32),
-    Curve(Curve),
-}
-
-#[derive(Clone, Debug)]
-enum CompiledLayer {
-    Op(fn(f32, f32) -> f32, CompiledInput),
-    Clamp(f32, f32),
+pub struct RigParts {
+    /// Each sensor with its name, in scene order (the stacks' sensor
+    /// indices).
+    pub sensors: Vec<(String, SensorTracker)>,
+    /// `(muscle index, stack)` of every driven muscle.
+    pub stacks: Vec<(usize, ActivationStack)>,
 }
 
 /// Sensors plus the activation stacks of the muscles they drive, compiled to
-/// bone and sensor indices. [`crate::Solver`] updates it once per frame.
+/// bone and sensor indices. [`crate::Solver`] updates it once per frame:
+/// every sensor ([`SensorTracker`]), then every stack
+/// ([`ActivationStack`]) in order.
 #[derive(Clone, Debug, Default)]
 pub struct ActivationRig {
-    sensors: Vec<SensorState>,
+    sensors: Vec<SensorTracker>,
     sensor_names: Vec<String>,
-    /// `(muscle index, layers)`.
-    stacks: Vec<(usize, Vec<CompiledLayer>)>,
+    /// `(muscle index, stack)`.
+    stacks: Vec<(usize, ActivationStack)>,
 }
 
 impl ActivationRig {
@@ -360,40 +230,8 @@ impl ActivationRig {
             if names.contains(&s.name) {
                 return Err(SceneError::DuplicateName(s.name.clone()));
             }
-            let point = |p: &BonePoint| -> Result<CompiledPoint, SceneError> {
-                if !p.point.is_finite() {
-                    return Err(SceneError::Invalid {
-                        context: format!("sensor {i} '{}'", s.name),
-                        reason: "non-finite point".into(),
-                    });
-                }
-                Ok(CompiledPoint {
-                    bone: bone_index(&p.bone).ok_or_else(|| SceneError::UnknownReference {
-                        context: format!("sensor {i} '{}'", s.name),
-                        kind: "bone",
-                        name: p.bone.clone(),
-                    })?,
-                    point: p.point,
-                })
-            };
-            let kind = match &s.kind {
-                SensorKind::Distance { a, b } => CompiledKind::Distance(point(a)?, point(b)?),
-                SensorKind::Rotation { a, middle, c } => {
-                    CompiledKind::Rotation(point(a)?, point(middle)?, point(c)?)
-                }
-                SensorKind::Linear { point: p } => CompiledKind::Linear(point(p)?),
-            };
+            states.push(SensorTracker::new(s, i, bone_index)?);
             names.push(s.name.clone());
-            states.push(SensorState {
-                kind,
-                samples: 0,
-                start: Vec3::ZERO,
-                last_point: Vec3::ZERO,
-                last_velocity_vector: Vec3::ZERO,
-                value: 0.0,
-                velocity: 0.0,
-                acceleration: 0.0,
-            });
         }
         Ok(Self {
             sensors: states,
@@ -409,72 +247,9 @@ impl ActivationRig {
         name: &str,
         layers: &[ActivationLayer],
     ) -> Result<(), SceneError> {
-        let mut compiled = Vec::with_capacity(layers.len());
-        for (li, layer) in layers.iter().enumerate() {
-            let context = || format!("muscle '{name}' activation layer {li}");
-            let invalid = |reason: String| SceneError::Invalid {
-                context: context(),
-                reason,
-            };
-            let input = |input: &LayerInput| -> Result<CompiledInput, SceneError> {
-                Ok(match input {
-                    LayerInput::Constant(c) if c.is_finite() => CompiledInput::Constant(*c),
-                    LayerInput::Constant(c) => return Err(invalid(format!("constant {c}"))),
-                    LayerInput::Curve(c) => CompiledInput::Curve(c.clone()),
-                    LayerInput::Sensor(s) => {
-                        let sensor = self
-                            .sensor_names
-                            .iter()
-                            .position(|n| n == &s.sensor)
-                            .ok_or_else(|| SceneError::UnknownReference {
-                                context: context(),
-                                kind: "sensor",
-                                name: s.sensor.clone(),
-                            })?;
-                        let t = &s.trigger;
-                        let finite = [t.threshold_on, t.threshold_off, t.attack, t.release, t.gain]
-                            .iter()
-                            .chain([s.remap.input.0, s.remap.input.1].iter())
-                            .chain([s.remap.output.0, s.remap.output.1].iter())
-                            .all(|v| v.is_finite());
-                        if !finite {
-                            return Err(invalid("non-finite trigger or remap parameter".into()));
-                        }
-                        if t.threshold_off > t.threshold_on {
-                            return Err(invalid(format!(
-                                "threshold_off {} > threshold_on {}",
-                                t.threshold_off, t.threshold_on
-                            )));
-                        }
-                        if t.attack < 0.0 || t.release < 0.0 {
-                            return Err(invalid("attack and release must be ≥ 0".into()));
-                        }
-                        CompiledInput::Trigger(TriggerState {
-                            sensor,
-                            input: s.clone(),
-                            gate: false,
-                            activation: 0.0,
-                        })
-                    }
-                })
-            };
-            compiled.push(match layer {
-                ActivationLayer::Over(i) => CompiledLayer::Op(|_, b| b, input(i)?),
-                ActivationLayer::Add(i) => CompiledLayer::Op(|a, b| a + b, input(i)?),
-                ActivationLayer::Sub(i) => CompiledLayer::Op(|a, b| a - b, input(i)?),
-                ActivationLayer::Mult(i) => CompiledLayer::Op(|a, b| a * b, input(i)?),
-                ActivationLayer::Div(i) => {
-                    CompiledLayer::Op(|a, b| if b != 0.0 { a / b } else { a }, input(i)?)
-                }
-                ActivationLayer::Clamp { min, max } => {
-                    if min.is_nan() || max.is_nan() || min > max {
-                        return Err(invalid(format!("clamp [{min}, {max}] is empty")));
-                    }
-                    CompiledLayer::Clamp(*min, *max)
-                }
-            });
-        }
-        self.stacks.push((muscle, compiled));
+        let names = &self.sensor_names;
+        let stack = ActivationStack::new(name, layers, &|n| names.iter().position(|s| s == n))?;
+        self.stacks.push((muscle, stack));
         Ok(())
     }
 
@@ -493,32 +268,14 @@ impl ActivationRig {
         dt: f32,
         mut set: impl FnMut(usize, f32),
     ) {
-        let dt = dt.max(1e-9);
         for s in &mut self.sensors {
             s.update(bones, dt);
         }
-        for (muscle, layers) in &mut self.stacks {
-            let mut a = 0.0f32;
-            for layer in layers.iter_mut() {
-                a = match layer {
-                    CompiledLayer::Clamp(lo, hi) => a.clamp(*lo, *hi),
-                    CompiledLayer::Op(op, input) => {
-                        let b = match input {
-                            CompiledInput::Constant(c) => *c,
-                            CompiledInput::Curve(c) => c.sample(time),
-                            CompiledInput::Trigger(t) => t.update(&self.sensors, dt),
-                        };
-                        op(a, b)
-                    }
-                };
-            }
+        let sensors = &self.sensors;
+        for (muscle, stack) in &mut self.stacks {
             set(
                 *muscle,
-                if a.is_finite() {
-                    a.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                },
+                stack.evaluate(time, dt, |i, output| Some(sensors[i].output(output))),
             );
         }
     }
@@ -528,7 +285,16 @@ impl ActivationRig {
         self.sensor_names
             .iter()
             .zip(&self.sensors)
-            .map(|(n, s)| (n.as_str(), [s.value, s.velocity, s.acceleration]))
+            .map(|(n, s)| (n.as_str(), s.reading()))
+    }
+
+    /// The named sensors and the stacks, for a driver that keeps them
+    /// apart (the Bevy plug-in's sensor entities).
+    pub fn into_parts(self) -> RigParts {
+        RigParts {
+            sensors: self.sensor_names.into_iter().zip(self.sensors).collect(),
+            stacks: self.stacks,
+        }
     }
 }
 

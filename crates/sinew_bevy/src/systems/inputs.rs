@@ -186,41 +186,18 @@ pub(crate) fn read_bones(
     clock.lap(&mut timings.step.read_inputs);
 }
 
-/// Activation curves and sensor rigs set the activation of driven muscles.
+/// Activation curves set the activation of driven muscles (sensors then
+/// override it: [`crate::sensors::drive_activation`]).
 pub(crate) fn read_activation(
     ctx: Res<StepContext>,
     mut timings: ResMut<SinewTimings>,
-    mut muscles: Query<(&mut Muscle, Option<&ActivationCurve>)>,
-    mut rigs: Query<&mut SensorRig>,
-    bones: Query<&BonePose>,
-    mut poses: Local<Vec<Affine3A>>,
+    mut muscles: Query<(&mut Muscle, &ActivationCurve)>,
 ) {
     let mut clock = Stopwatch::new(ctx.settings.timers);
     for (mut muscle, curve) in &mut muscles {
-        if let Some(curve) = curve
-            && muscle.driven
-        {
+        if muscle.driven {
             muscle.activation = curve.0.sample(ctx.end_time);
         }
-    }
-    let dt = ctx.settings.step_time();
-    for mut rig in &mut rigs {
-        let rig = &mut *rig;
-        poses.clear();
-        poses.extend(
-            rig.bones
-                .iter()
-                .map(|&b| bones.get(b).map_or(Affine3A::IDENTITY, |pose| pose.current)),
-        );
-        let targets = &rig.muscles;
-        rig.rig.update(&poses, ctx.end_time, dt, |m, a| {
-            if let Some(&entity) = targets.get(m)
-                && let Ok((mut muscle, _)) = muscles.get_mut(entity)
-                && muscle.driven
-            {
-                muscle.activation = a;
-            }
-        });
     }
     clock.lap(&mut timings.step.read_inputs);
 }

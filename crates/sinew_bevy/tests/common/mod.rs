@@ -61,3 +61,12 @@ pub fn update_until(app: &mut App, done: impl Fn(&App) -> bool) {
     }
     panic!("timed out");
 }
+
+/// The muscle entities a scene root spawned, in scene order.
+pub fn scene_muscles(app: &App, root: Entity) -> Vec<Entity> {
+    app.world()
+        .get::<SpawnedScene>(root)
+        .expect("a spawned scene")
+        .muscles
+        .clone()
+}

@@ -71,10 +71,9 @@ fn rotation_sensor_reads_the_joint_angle_and_drives_activation() {
 #[test]
 fn attack_and_release_smooth_the_trigger() {
     let mut rig = elbow_rig();
-    if let CompiledLayer::Op(_, CompiledInput::Trigger(t)) = &mut rig.stacks[0].1[0] {
-        t.input.trigger.attack = 0.1;
-        t.input.trigger.release = 0.3;
-    }
+    let trigger = rig.stacks[0].1.trigger_mut(0).expect("a sensor layer");
+    trigger.attack = 0.1;
+    trigger.release = 0.3;
     let mut a = 0.0;
     rig.update(&bones(std::f32::consts::FRAC_PI_2), 0.0, 0.1, |_, v| a = v);
     // One time constant: 1 − e⁻¹.
