@@ -69,9 +69,10 @@ impl Muscle {
         let mut attach_vertices = Vec::with_capacity(attachments.len());
         let mut held = Vec::with_capacity(attachments.len());
         for (i, a) in attachments.iter().enumerate() {
-            let vertices = a.held_vertices(&mesh.positions, &name, i)?;
-            attach_vertices.push(vertices[0]);
-            held.extend(vertices.into_iter().map(|v| (a.bone, v)));
+            let root = a.for_each_held_vertex(&mesh.positions, &name, i, |v| {
+                held.push((a.bone, v));
+            })?;
+            attach_vertices.push(root);
         }
         // Roots.
         let root_list: Vec<u32> = match &roots {
