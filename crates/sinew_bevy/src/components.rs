@@ -287,13 +287,13 @@ impl Muscle {
         changed
     }
 
-    /// `p` with these values written in, if the core accepts them
+    /// Whether the core accepts these values written over `p`
     /// ([`MuscleParams::validate`]; the activation is left to its clamp).
     /// `muscle` names the muscle in the error.
-    pub fn validated(&self, p: &MuscleParams, muscle: &str) -> Result<MuscleParams, BuildError> {
+    pub fn validate(&self, p: &MuscleParams, muscle: &str) -> Result<(), BuildError> {
         let mut params = p.clone();
         self.write_to(&mut params);
-        let activation = std::mem::replace(&mut params.activation, 0.0);
+        params.activation = 0.0;
         params.validate(muscle)?;
         if self.iterations == Some(0) {
             return Err(BuildError::InvalidParameter {
@@ -303,8 +303,7 @@ impl Muscle {
                 reason: "must be ≥ 1".into(),
             });
         }
-        params.activation = activation;
-        Ok(params)
+        Ok(())
     }
 }
 

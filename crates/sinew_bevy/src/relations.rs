@@ -164,6 +164,22 @@ pub struct HeldVertices {
 }
 
 impl HeldVertices {
+    /// Whether it was resolved for `region` held by `bone` (regions
+    /// compared by [`AttachmentRegion::same_as`]).
+    pub(crate) fn is_resolved_for(
+        &self,
+        region: Option<&AttachmentRegion>,
+        bone: Option<Entity>,
+    ) -> bool {
+        self.resolved_for.as_ref().is_some_and(|(r, b)| {
+            *b == bone
+                && match (r, region) {
+                    (Some(r), Some(region)) => r.same_as(region),
+                    (r, region) => r.is_none() && region.is_none(),
+                }
+        })
+    }
+
     /// The held surface vertices.
     pub fn vertices(&self) -> impl Iterator<Item = u32> + '_ {
         self.attachments.iter().map(|(_, a)| a.vertex.raw())

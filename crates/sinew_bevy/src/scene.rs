@@ -192,13 +192,7 @@ fn spawn_sensors(
         .sensors
         .into_iter()
         .map(|(name, mut tracker)| {
-            let mut used: Vec<usize> = Vec::new();
-            for b in tracker.bones() {
-                if !used.contains(&b) {
-                    used.push(b);
-                }
-            }
-            tracker.remap_bones(|b| used.iter().position(|&u| u == b).expect("listed"));
+            let used = tracker.localize_bones();
             let sensor = Sensor {
                 name: name.clone(),
                 tracker,

@@ -50,14 +50,7 @@ pub(crate) fn sync_attachments(
                 continue;
             };
             let bone = to.map(|t| t.0);
-            let resolved = held.resolved_for.as_ref().is_some_and(|(r, b)| {
-                *b == bone
-                    && match (r, region) {
-                        (Some(r), Some(region)) => r.same_as(region),
-                        (r, region) => r.is_none() && region.is_none(),
-                    }
-            });
-            if !resolved {
+            if !held.is_resolved_for(region, bone) {
                 changed = true;
                 let pose = match bone.map(|b| bones.get(b)) {
                     None => Ok(Affine3A::IDENTITY),
@@ -78,16 +71,13 @@ pub(crate) fn sync_attachments(
                 match resolved {
                     Ok(resolved) => {
                         held.attachments = resolved;
-                        commands.trigger(MuscleAttached {
+                        let attached = MuscleAttached {
                             entity: muscle,
                             attachment: entity,
                             bone,
-                        });
-                        commands.write_message(MuscleAttached {
-                            entity: muscle,
-                            attachment: entity,
-                            bone,
-                        });
+                        };
+                        commands.write_message(attached);
+                        commands.trigger(attached);
                     }
                     Err(error) => {
                         warn!(

@@ -212,7 +212,7 @@ pub(crate) fn sync_muscles(
     let mut clock = Stopwatch::new(ctx.settings.timers);
     for (muscle, mut state) in &mut muscles {
         let state = &mut *state;
-        match muscle.validated(&state.muscle.params, &state.muscle.name) {
+        match muscle.validate(&state.muscle.params, &state.muscle.name) {
             Err(error) => {
                 let error = error.to_string();
                 if state.rejected.as_ref() != Some(&error) {
@@ -220,12 +220,9 @@ pub(crate) fn sync_muscles(
                     state.rejected = Some(error);
                 }
             }
-            Ok(params) => {
+            Ok(()) => {
                 state.rejected = None;
-                let relink = params.compliance != state.muscle.params.compliance
-                    || params.weights != state.muscle.params.weights;
-                state.muscle.params = params;
-                if relink {
+                if muscle.write_to(&mut state.muscle.params) {
                     state.muscle.apply_compliances();
                 }
             }

@@ -82,28 +82,27 @@ impl SensorTracker {
         })
     }
 
-    /// The bone indices its points read, in order.
-    pub fn bones(&self) -> Vec<usize> {
-        self.points().iter().map(|p| p.bone).collect()
-    }
-
-    /// Renumbers the bones its points read (`f(old) = new`): for a driver
-    /// that gives each sensor its own list of bones.
-    pub fn remap_bones(&mut self, f: impl Fn(usize) -> usize) {
-        let remap = |p: &mut CompiledPoint| p.bone = f(p.bone);
+    /// Renumbers the bones its points read to `0..k`, in the order of
+    /// their first use, and returns the old index of each: for a driver
+    /// that gives each sensor its own list of bones (as
+    /// [`super::ActivationStack::localize_sensors`] does for sensors).
+    pub fn localize_bones(&mut self) -> Vec<usize> {
+        let mut used: Vec<usize> = Vec::new();
+        let mut localize = |p: &mut CompiledPoint| {
+            p.bone = match used.iter().position(|&b| b == p.bone) {
+                Some(slot) => slot,
+                None => {
+                    used.push(p.bone);
+                    used.len() - 1
+                }
+            };
+        };
         match &mut self.kind {
-            CompiledKind::Distance(a, b) => [a, b].into_iter().for_each(remap),
-            CompiledKind::Rotation(a, m, c) => [a, m, c].into_iter().for_each(remap),
-            CompiledKind::Linear(p) => remap(p),
+            CompiledKind::Distance(a, b) => [a, b].into_iter().for_each(&mut localize),
+            CompiledKind::Rotation(a, m, c) => [a, m, c].into_iter().for_each(&mut localize),
+            CompiledKind::Linear(p) => localize(p),
         }
-    }
-
-    fn points(&self) -> Vec<&CompiledPoint> {
-        match &self.kind {
-            CompiledKind::Distance(a, b) => vec![a, b],
-            CompiledKind::Rotation(a, m, c) => vec![a, m, c],
-            CompiledKind::Linear(p) => vec![p],
-        }
+        used
     }
 
     /// One output.
