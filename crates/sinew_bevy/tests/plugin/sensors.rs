@@ -2,7 +2,7 @@
 //! related to the muscles it drives through input entities, can be
 //! re-targeted, and can go away without harm.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;

@@ -4,7 +4,7 @@
 //! the plain driver); an app that falls behind runs at most the capped
 //! steps and reports the time it dropped.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;

@@ -3,7 +3,7 @@
 //! observers, as messages, and in the panel's log; what the panel's Reset
 //! does to a hand-built muscle; and a mesh entity made a bone.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;

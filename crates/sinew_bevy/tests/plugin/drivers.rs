@@ -3,7 +3,7 @@
 //! bit for bit with every method at 1, 2 and 8 threads, and the colour
 //! sweeps across muscles are taken by both.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;

@@ -4,7 +4,7 @@
 //! constraint sets as a queryable component, and every relation type
 //! registered for reflection.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;

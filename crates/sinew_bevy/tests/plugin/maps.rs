@@ -4,7 +4,7 @@
 //! with a typed error naming the map and the vertex.
 #![cfg(feature = "render")]
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::mesh_maps::{ATTRIBUTE_HARD_WEIGHT, ATTRIBUTE_SLIDING_WEIGHT};

@@ -2,7 +2,7 @@
 //! driver bit for bit, and activation, bones moved by systems, method
 //! switches and despawns behave.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;

@@ -2,7 +2,7 @@
 //! same values and saves again to the same text; a scene without a file
 //! needs a path (typed error); a scene asset that changes is spawned again.
 
-mod common;
+use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;

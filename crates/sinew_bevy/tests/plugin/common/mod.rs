@@ -1,7 +1,7 @@
 //! What several of the plug-in's test files build: a scene whose inputs
 //! move every step, and a hand-built oval on a bone.
 
-#![allow(dead_code)] // each test file uses a part
+#![allow(dead_code)] // each test module uses a part
 
 use bevy::prelude::*;
 use sinew_bevy::prelude::*;
