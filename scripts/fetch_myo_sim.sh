@@ -4,6 +4,7 @@
 # assets/mjcf/ include them from. Needs python3 with pip, or curl.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/fetch_wheel.sh
 VERSION="${MYO_SIM_VERSION:-0.2.4}"
 DEST=assets/mjcf/myo_sim
 if [ -f "$DEST/.version" ] && [ "$(cat "$DEST/.version")" = "$VERSION" ]; then
@@ -12,15 +13,7 @@ if [ -f "$DEST/.version" ] && [ "$(cat "$DEST/.version")" = "$VERSION" ]; then
 fi
 TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT
-if command -v pip >/dev/null 2>&1 || command -v pip3 >/dev/null 2>&1; then
-    "$(command -v pip || command -v pip3)" download --no-deps --quiet "myo-sim==$VERSION" -d "$TMP"
-else
-    curl -sSfL -o "$TMP/myo_sim-$VERSION-py3-none-any.whl" \
-        "https://files.pythonhosted.org/packages/py3/m/myo-sim/myo_sim-$VERSION-py3-none-any.whl"
-fi
-WHEEL="$(ls "$TMP"/myo_sim-*.whl)"
-mkdir -p "$TMP/unpacked"
-python3 -m zipfile -e "$WHEEL" "$TMP/unpacked"
+fetch_wheel myo-sim "$VERSION" "$TMP"
 rm -rf "$DEST"
 mkdir -p "$DEST"
 cp -r "$TMP/unpacked/myo_sim/models" "$DEST/models"

@@ -1,6 +1,7 @@
 //! `sinew`: headless tools for MSXPBD scenes — info, validate, bake, bench.
 
 mod bench;
+mod character;
 mod check;
 mod commands;
 mod import;
@@ -75,6 +76,15 @@ enum Command {
     /// motion has stopped, rest (velocity, jiggle, deviation from the rest
     /// shape). Exits non-zero when a figure is out of its range.
     Check(check::CheckArgs),
+    /// Convert the MakeHuman base mesh and rig (a folder holding `3dobjs/`
+    /// and `rigs/`, e.g. fetched by `scripts/fetch_makehuman.sh`) into a
+    /// skinned glTF character (`.glb`) with an elbow-flexion clip.
+    ImportMakehuman {
+        /// MakeHuman data folder.
+        dir: PathBuf,
+        #[command(flatten)]
+        args: character::MakeHumanArgs,
+    },
     /// Simulate to a frame and draw bones and muscles into a PNG (software
     /// rasteriser: no GPU or window needed).
     Render {
@@ -133,6 +143,7 @@ fn main() -> ExitCode {
             out,
         } => render::run(&scene, frame, view, (width, height), !no_bones, &out),
         Command::Check(args) => check::run(&args),
+        Command::ImportMakehuman { dir, args } => character::run(&dir, &args),
         Command::ImportMjcf { input, args } => import::run(&input, &args),
         Command::Suite(args) => suite::run(&args),
     };

@@ -28,6 +28,14 @@ pub enum MeshError {
         /// What the parser reported.
         reason: String,
     },
+    /// An OBJ has no faces in the group asked for.
+    #[error("{file}: no faces in group '{group}'")]
+    MissingGroup {
+        /// Offending file.
+        file: PathBuf,
+        /// The group's name.
+        group: String,
+    },
     /// The mesh has no polygons.
     #[error("{file}: mesh has no faces")]
     NoFaces {

@@ -41,6 +41,7 @@
 
 pub mod analysis;
 pub mod animation;
+pub mod character;
 pub mod closest;
 pub mod constraints;
 pub mod error;

@@ -52,7 +52,7 @@ fn read_raw(path: &Path) -> Result<Raw, MeshError> {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("obj") => read_obj(path),
+        Some("obj") => read_obj(path).map(|(positions, polygons, _)| (positions, polygons)),
         Some("stl") => read_stl(path),
         _ => Err(MeshError::UnsupportedFormat {
             file: path.to_path_buf(),
@@ -77,16 +77,7 @@ pub(crate) fn from_raw(
             });
         }
     }
-    for (face, poly) in polygons.iter().enumerate() {
-        if let Some(&index) = poly.iter().find(|&&i| i as usize >= positions.len()) {
-            return Err(MeshError::IndexOutOfRange {
-                file: path.to_path_buf(),
-                face,
-                index: index as usize,
-                count: positions.len(),
-            });
-        }
-    }
+    check_indices(path, &polygons, positions.len())?;
     if options.scale != 1.0 {
         for p in &mut positions {
             *p *= options.scale;
@@ -114,14 +105,75 @@ pub(crate) fn from_raw(
     })
 }
 
+/// Every polygon corner must name one of the `count` vertices (the error
+/// names the face in file order).
+fn check_indices(path: &Path, polygons: &[Vec<u32>], count: usize) -> Result<(), MeshError> {
+    for (face, poly) in polygons.iter().enumerate() {
+        if let Some(&index) = poly.iter().find(|&&i| i as usize >= count) {
+            return Err(MeshError::IndexOutOfRange {
+                file: path.to_path_buf(),
+                face,
+                index: index as usize,
+                count,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Positions and polygons as read from a file.
 type Raw = (Vec<Vec3>, Vec<Vec<u32>>);
+
+/// An OBJ's vertices in the file's order and its faces by group (`g NAME`):
+/// a character's skin apart from its helper geometry, whose vertex indices
+/// still match the file's (skin weights and joint markers refer to them).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ObjGroups {
+    /// Every vertex, as stored.
+    pub positions: Vec<Vec3>,
+    /// Each group's name and polygons (0-based indices into `positions`), in
+    /// the order the groups first appear; faces before any `g` are in
+    /// `"default"`, a face under `g a b` is in both groups.
+    pub groups: Vec<(String, Vec<Vec<u32>>)>,
+}
+
+impl ObjGroups {
+    /// Reads an OBJ's vertices and grouped faces (syntax and indices checked,
+    /// no welding).
+    pub fn read(path: &Path) -> Result<Self, MeshError> {
+        let (positions, polygons, labels) = read_obj(path)?;
+        check_indices(path, &polygons, positions.len())?;
+        let mut groups: Vec<(String, Vec<Vec<u32>>)> = Vec::new();
+        for (polygon, names) in polygons.into_iter().zip(labels) {
+            for name in names.split_whitespace() {
+                match groups.iter_mut().find(|(n, _)| n == name) {
+                    Some((_, faces)) => faces.push(polygon.clone()),
+                    None => groups.push((name.to_string(), vec![polygon.clone()])),
+                }
+            }
+        }
+        Ok(Self { positions, groups })
+    }
+
+    /// The polygons of group `name`, or `MeshError::MissingGroup` naming `file`.
+    pub fn group(&self, file: &Path, name: &str) -> Result<&[Vec<u32>], MeshError> {
+        self.groups
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, faces)| faces.as_slice())
+            .ok_or_else(|| MeshError::MissingGroup {
+                file: file.to_path_buf(),
+                group: name.to_string(),
+            })
+    }
+}
 
 /// Reads the vertices and faces of a Wavefront OBJ, keeping the file's vertex
 /// order (scenes refer to vertices by index: roots, attachments, maps).
 /// `v x y z [w]` and `f` with `v`, `v/vt`, `v//vn` or `v/vt/vn` corners,
 /// 1-based or negative (relative) indices; other statements are ignored.
-fn read_obj(path: &Path) -> Result<Raw, MeshError> {
+/// Each polygon comes with the names of the `g` statement above it.
+fn read_obj(path: &Path) -> Result<ObjText, MeshError> {
     let text = std::fs::read_to_string(path).map_err(|source| MeshError::Io {
         file: path.to_path_buf(),
         source,
@@ -132,6 +184,9 @@ fn read_obj(path: &Path) -> Result<Raw, MeshError> {
     };
     let mut positions = Vec::new();
     let mut polygons = Vec::new();
+    // The `g` statements' names, and each polygon's entry in that list.
+    let mut labels = vec!["default".to_string()];
+    let mut polygon_labels = Vec::new();
     for (n, raw) in text.lines().enumerate() {
         let line = n + 1;
         let content = raw.split('#').next().unwrap_or("");
@@ -148,6 +203,14 @@ fn read_obj(path: &Path) -> Result<Raw, MeshError> {
                         .map_err(|_| parse(line, format!("'{word}' is not a number")))?;
                 }
                 positions.push(Vec3::from_array(c));
+            }
+            Some("g") => {
+                let names = words.collect::<Vec<_>>().join(" ");
+                labels.push(if names.is_empty() {
+                    "default".into()
+                } else {
+                    names
+                });
             }
             Some("f") => {
                 let mut face = Vec::new();
@@ -184,12 +247,20 @@ fn read_obj(path: &Path) -> Result<Raw, MeshError> {
                     ));
                 }
                 polygons.push(face);
+                polygon_labels.push(labels.len() - 1);
             }
             _ => {}
         }
     }
-    Ok((positions, polygons))
+    let labels = polygon_labels
+        .into_iter()
+        .map(|k| labels[k].clone())
+        .collect();
+    Ok((positions, polygons, labels))
 }
+
+/// An OBJ's positions, polygons, and the group names above each polygon.
+type ObjText = (Vec<Vec3>, Vec<Vec<u32>>, Vec<String>);
 
 fn read_stl(path: &Path) -> Result<Raw, MeshError> {
     let file = std::fs::File::open(path).map_err(|source| MeshError::Io {

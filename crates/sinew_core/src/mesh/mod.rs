@@ -11,7 +11,7 @@ pub(crate) mod load;
 pub mod primitives;
 mod validate;
 
-pub use load::{LoadOptions, load_mesh};
+pub use load::{LoadOptions, ObjGroups, load_mesh};
 pub use validate::MeshReport;
 
 use crate::error::MeshError;

@@ -1,0 +1,310 @@
+//! A [`SkinnedCharacter`] as binary glTF 2.0 (`.glb`): one scene whose root
+//! node holds the joint hierarchy and the skinned skin mesh (positions,
+//! normals, `JOINTS_0`, `WEIGHTS_0`, one skin material), the skin's inverse
+//! bind matrices, and one animation per clip (`LINEAR` rotation samplers).
+//! The output is deterministic: the same character gives the same bytes.
+
+use super::{CharacterError, SkinnedCharacter};
+use glam::{Mat4, Vec3};
+use serde_json::{Value, json};
+use std::path::Path;
+
+/// Writes `character` (validated first) to `path` as a `.glb`.
+pub fn write(character: &SkinnedCharacter, path: &Path) -> Result<(), CharacterError> {
+    let bytes = to_bytes(character)?;
+    std::fs::write(path, bytes).map_err(|source| CharacterError::Io {
+        file: path.to_path_buf(),
+        source,
+    })
+}
+
+/// `character` (validated first) as the bytes of a `.glb`.
+pub fn to_bytes(character: &SkinnedCharacter) -> Result<Vec<u8>, CharacterError> {
+    character.validate()?;
+    let mut buffer = BinaryBuffer::default();
+    let n = character.positions.len();
+
+    let (lo, hi) = character.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let position = buffer.accessor(
+        floats(character.positions.iter().flat_map(|p| p.to_array())),
+        Some(ARRAY_BUFFER),
+        FLOAT,
+        n,
+        "VEC3",
+        Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
+    );
+    let normals = vertex_normals(&character.positions, &character.triangles);
+    let normal = buffer.accessor(
+        floats(normals.iter().flat_map(|p| p.to_array())),
+        Some(ARRAY_BUFFER),
+        FLOAT,
+        n,
+        "VEC3",
+        None,
+    );
+    let joint_bytes = character
+        .influences
+        .iter()
+        .flatten()
+        .flat_map(|(j, _)| j.to_le_bytes())
+        .collect();
+    let joints = buffer.accessor(
+        joint_bytes,
+        Some(ARRAY_BUFFER),
+        UNSIGNED_SHORT,
+        n,
+        "VEC4",
+        None,
+    );
+    let weights = buffer.accessor(
+        floats(character.influences.iter().flatten().map(|(_, w)| *w)),
+        Some(ARRAY_BUFFER),
+        FLOAT,
+        n,
+        "VEC4",
+        None,
+    );
+    let index_bytes = character
+        .triangles
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
+    let indices = buffer.accessor(
+        index_bytes,
+        Some(ELEMENT_ARRAY_BUFFER),
+        UNSIGNED_INT,
+        character.triangles.len() * 3,
+        "SCALAR",
+        None,
+    );
+    let inverse_binds = buffer.accessor(
+        floats(
+            character
+                .joints
+                .iter()
+                .flat_map(|j| Mat4::from_translation(-j.origin).to_cols_array()),
+        ),
+        None,
+        FLOAT,
+        character.joints.len(),
+        "MAT4",
+        None,
+    );
+
+    // Nodes: the joints (0..J, in the character's order), the skin mesh, the root.
+    let joint_count = character.joints.len();
+    let mut nodes: Vec<Value> = character
+        .joints
+        .iter()
+        .enumerate()
+        .map(|(k, joint)| {
+            let children: Vec<usize> = character
+                .joints
+                .iter()
+                .enumerate()
+                .filter(|(_, j)| j.parent == Some(k))
+                .map(|(c, _)| c)
+                .collect();
+            let mut node = json!({
+                "name": joint.name,
+                "translation": character.local_translation(k).to_array(),
+            });
+            if !children.is_empty() {
+                node["children"] = json!(children);
+            }
+            node
+        })
+        .collect();
+    let mesh_node = joint_count;
+    let root_node = joint_count + 1;
+    nodes.push(json!({ "name": format!("{}_skin", character.name), "mesh": 0, "skin": 0 }));
+    let mut root_children: Vec<usize> = character
+        .joints
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.parent.is_none())
+        .map(|(k, _)| k)
+        .collect();
+    root_children.push(mesh_node);
+    nodes.push(json!({ "name": character.name, "children": root_children }));
+
+    let mut animations = Vec::new();
+    for clip in &character.clips {
+        let mut samplers = Vec::new();
+        let mut channels = Vec::new();
+        for (s, channel) in clip.channels.iter().enumerate() {
+            let first = channel.times[0];
+            let last = *channel.times.last().unwrap_or(&first);
+            let input = buffer.accessor(
+                floats(channel.times.iter().copied()),
+                None,
+                FLOAT,
+                channel.times.len(),
+                "SCALAR",
+                Some((vec![first], vec![last])),
+            );
+            let output = buffer.accessor(
+                floats(channel.rotations.iter().flat_map(|q| q.to_array())),
+                None,
+                FLOAT,
+                channel.rotations.len(),
+                "VEC4",
+                None,
+            );
+            samplers.push(json!({ "input": input, "output": output, "interpolation": "LINEAR" }));
+            channels.push(json!({
+                "sampler": s,
+                "target": { "node": channel.joint, "path": "rotation" },
+            }));
+        }
+        animations.push(json!({ "name": clip.name, "channels": channels, "samplers": samplers }));
+    }
+
+    let roots: Vec<usize> = (0..joint_count)
+        .filter(|&k| character.joints[k].parent.is_none())
+        .collect();
+    let mut skin = json!({
+        "name": format!("{}_skeleton", character.name),
+        "inverseBindMatrices": inverse_binds,
+        "joints": (0..joint_count).collect::<Vec<_>>(),
+    });
+    if let [root] = roots[..] {
+        skin["skeleton"] = json!(root);
+    }
+    let mut document = json!({
+        "asset": { "version": "2.0", "generator": "sinew (MSXPBD muscle simulation)" },
+        "scene": 0,
+        "scenes": [{ "name": character.name, "nodes": [root_node] }],
+        "nodes": nodes,
+        "meshes": [{
+            "name": format!("{}_skin", character.name),
+            "primitives": [{
+                "attributes": {
+                    "POSITION": position,
+                    "NORMAL": normal,
+                    "JOINTS_0": joints,
+                    "WEIGHTS_0": weights,
+                },
+                "indices": indices,
+                "material": 0,
+                "mode": 4,
+            }],
+        }],
+        "materials": [{
+            "name": "skin",
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [0.80, 0.62, 0.52, 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 0.6,
+            },
+        }],
+        "skins": [skin],
+        "buffers": [{ "byteLength": buffer.bytes.len() }],
+        "bufferViews": buffer.views,
+        "accessors": buffer.accessors,
+    });
+    if !animations.is_empty() {
+        document["animations"] = json!(animations);
+    }
+    Ok(assemble(&document, buffer.bytes))
+}
+
+/// glTF component types and buffer-view targets.
+const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
+const UNSIGNED_INT: u32 = 5125;
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+
+/// The binary chunk under construction, with its views and accessors.
+#[derive(Default)]
+struct BinaryBuffer {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl BinaryBuffer {
+    /// Appends `data` as a buffer view (4-byte aligned) read by one accessor;
+    /// returns the accessor's index.
+    fn accessor(
+        &mut self,
+        data: Vec<u8>,
+        target: Option<u32>,
+        component_type: u32,
+        count: usize,
+        kind: &str,
+        bounds: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        let mut view = json!({
+            "buffer": 0,
+            "byteOffset": self.bytes.len(),
+            "byteLength": data.len(),
+        });
+        if let Some(target) = target {
+            view["target"] = json!(target);
+        }
+        self.bytes.extend(data);
+        self.views.push(view);
+        let mut accessor = json!({
+            "bufferView": self.views.len() - 1,
+            "componentType": component_type,
+            "count": count,
+            "type": kind,
+        });
+        if let Some((min, max)) = bounds {
+            accessor["min"] = json!(min);
+            accessor["max"] = json!(max);
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+}
+
+fn floats(values: impl Iterator<Item = f32>) -> Vec<u8> {
+    values.flat_map(f32::to_le_bytes).collect()
+}
+
+/// Area-weighted vertex normals (unit; +Y for a vertex on no triangle).
+fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            normals[i as usize] += n;
+        }
+    }
+    normals.iter().map(|n| n.normalize_or(Vec3::Y)).collect()
+}
+
+/// The `.glb` container: header, JSON chunk (space-padded), BIN chunk
+/// (zero-padded).
+fn assemble(document: &Value, mut bin: Vec<u8>) -> Vec<u8> {
+    let mut text = document.to_string().into_bytes();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + text.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(text);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
