@@ -4,13 +4,12 @@
 //!
 //! `cargo run --release --example arm`
 //!
-//! Set `SINEW_SCREENSHOT=out.png` to save a screenshot after
-//! `SINEW_SCREENSHOT_FRAME` frames (default 90) and exit: CI does this under
-//! Xvfb.
+//! Set `SINEW_SCREENSHOT=out.png` to save a screenshot at simulation frame
+//! `SINEW_SCREENSHOT_FRAME` (default 90) and exit (the panel's
+//! `SinewScreenshotPlugin`): CI does this under Xvfb.
 
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use sinew::bevy::prelude::*;
 
 fn main() {
@@ -30,7 +29,7 @@ fn main() {
             ..default()
         })
         .add_systems(Startup, setup)
-        .add_systems(Update, (frame_the_muscles, orbit_camera, screenshot))
+        .add_systems(Update, (frame_the_muscles, orbit_camera))
         .run();
 }
 
@@ -121,36 +120,5 @@ fn orbit_camera(
         }
         orbit.distance = (orbit.distance * (1.0 - scroll.delta.y * 0.1)).clamp(0.1, 5.0);
         *transform = orbit.transform();
-    }
-}
-
-/// `SINEW_SCREENSHOT=path`: saves a screenshot at the chosen frame and exits
-/// a few frames later.
-fn screenshot(
-    mut commands: Commands,
-    clock: Res<SinewClock>,
-    mut frames: Local<u32>,
-    mut taken: Local<Option<u32>>,
-    mut exit: MessageWriter<AppExit>,
-) {
-    let Ok(path) = std::env::var("SINEW_SCREENSHOT") else {
-        return;
-    };
-    let at: u64 = std::env::var("SINEW_SCREENSHOT_FRAME")
-        .ok()
-        .and_then(|f| f.parse().ok())
-        .unwrap_or(90);
-    *frames += 1;
-    match *taken {
-        None if clock.frame >= at => {
-            commands
-                .spawn(Screenshot::primary_window())
-                .observe(save_to_disk(path));
-            *taken = Some(*frames);
-        }
-        Some(t) if *frames > t + 10 => {
-            exit.write(AppExit::Success);
-        }
-        _ => {}
     }
 }

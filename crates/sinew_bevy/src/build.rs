@@ -12,8 +12,10 @@ use crate::events::{MuscleBuildError, MuscleBuildFailed, MuscleBuilt};
 use crate::relations::{spawn_attachments, spawn_connections};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
+use bevy::transform::helper::TransformHelper;
 use sinew_core::closest::{TargetSource, TargetSurface};
 use sinew_core::glam::Affine3A;
+use sinew_core::mesh::primitives::MeshGenerator;
 use sinew_core::mesh::{LoadOptions, SurfaceMesh};
 use sinew_core::muscle::{
     AttachmentDesc, Muscle as CoreMuscle, MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps,
@@ -28,6 +30,8 @@ pub enum MuscleSource {
     File(PathBuf, LoadOptions),
     /// A mesh already in memory.
     Mesh(SurfaceMesh),
+    /// A generated mesh (ellipsoid, box, spindle…), built with the muscle.
+    Generated(MeshGenerator),
     /// A Bevy mesh asset (triangle list; split vertices are welded). The
     /// build starts once the asset is loaded.
     #[cfg(feature = "render")]
@@ -39,6 +43,20 @@ impl MuscleSource {
     /// file's units).
     pub fn file(path: impl Into<PathBuf>) -> Self {
         Self::File(path.into(), LoadOptions::default())
+    }
+
+    /// A spindle from `start` to `end` with a belly of `belly_radius` (scene
+    /// units) tapering to tendons of a quarter of it: 12 vertices around,
+    /// 16 rings (≈ 200 vertices), quads along and across its axis.
+    pub fn fusiform(start: Vec3, end: Vec3, belly_radius: f32) -> Self {
+        Self::Generated(MeshGenerator::Fusiform {
+            start,
+            end,
+            belly_radius,
+            tendon_radius: 0.25 * belly_radius,
+            around: 12,
+            rings: 16,
+        })
     }
 }
 
@@ -106,6 +124,9 @@ pub struct MuscleBuilder {
     pub targets: Vec<Entity>,
     /// Build-time and initial parameters.
     pub params: MuscleParams,
+    /// The bone whose frame the mesh and the attachment points are given
+    /// in (`None`: the world). See [`MuscleBuilder::placed_on`].
+    pub frame: Option<Entity>,
     /// Per-vertex maps (one value per surface vertex, after welding). A
     /// [`MuscleSource::Handle`] mesh adds those its vertex attributes
     /// carry ([`crate::mesh_maps`]); a map given here wins.
@@ -125,6 +146,7 @@ impl MuscleBuilder {
             roots: Roots::Attachments,
             attachments: Vec::new(),
             targets: Vec::new(),
+            frame: None,
             params: MuscleParams::default(),
             maps: VertexMaps::default(),
             #[cfg(feature = "render")]
@@ -147,6 +169,15 @@ impl MuscleBuilder {
     /// Adds a target (a bone with a [`BoneTarget`] or another muscle).
     pub fn target(mut self, target: Entity) -> Self {
         self.targets.push(target);
+        self
+    }
+
+    /// The mesh and every attachment point are in `bone`'s frame (scene
+    /// units): the muscle is built where that bone is when the build starts,
+    /// whatever pose an animation has it in — e.g. a muscle authored on a
+    /// glTF character's joint at its bind pose.
+    pub fn placed_on(mut self, bone: Entity) -> Self {
+        self.frame = Some(bone);
         self
     }
 
@@ -182,6 +213,13 @@ pub struct BuildFailed(pub Arc<MuscleBuildError>);
 #[derive(Component, Clone, Debug)]
 pub(crate) struct MuscleAtBuild(pub(crate) CoreMuscle);
 
+/// A muscle surface made on the build task (file reading and generation
+/// stay off the main thread).
+enum Deferred {
+    File(PathBuf, LoadOptions),
+    Generated(MeshGenerator),
+}
+
 /// A build in flight.
 #[derive(Component)]
 pub(crate) struct BuildTask {
@@ -195,13 +233,15 @@ pub(crate) fn start_builds(
     mut commands: Commands,
     builders: Query<(Entity, &MuscleBuilder), Without<BuildTask>>,
     bones: Query<(&BonePose, &GlobalTransform)>,
+    hierarchy: TransformHelper,
     settings: Res<crate::settings::SinewSettings>,
     #[cfg(feature = "render")] meshes: Option<Res<Assets<Mesh>>>,
 ) {
     for (entity, builder) in &builders {
         let mut maps = builder.maps.clone();
         let mesh = match &builder.source {
-            MuscleSource::File(path, options) => Err((path.clone(), options.clone())),
+            MuscleSource::File(path, options) => Err(Deferred::File(path.clone(), options.clone())),
+            MuscleSource::Generated(generator) => Err(Deferred::Generated(generator.clone())),
             MuscleSource::Mesh(mesh) => Ok(mesh.clone()),
             #[cfg(feature = "render")]
             MuscleSource::Handle(handle) => match meshes.as_ref().and_then(|m| m.get(handle)) {
@@ -227,34 +267,50 @@ pub(crate) fn start_builds(
                 None => continue, // not loaded yet
             },
         };
+        // A bone's pose now (`None`: not a bone). A bone the simulation has
+        // not read yet may be new this frame, its `GlobalTransform` not yet
+        // propagated (e.g. a joint of a glTF scene spawned this frame): its
+        // pose comes from its and its ancestors' `Transform`s.
+        let pose_of = |b: Entity| match bones.get(b) {
+            Ok((pose, _)) if pose.initialized => Some(pose.current),
+            Ok((_, global)) => Some(
+                hierarchy
+                    .compute_global_transform(b)
+                    .map_or(global.affine(), |g| g.affine()),
+            ),
+            Err(_) => None,
+        };
+        let mut missing = None;
+        // The frame the mesh and attachment points are given in.
+        let frame = match builder.frame {
+            Some(b) => pose_of(b).unwrap_or_else(|| {
+                missing = Some(b);
+                Affine3A::IDENTITY
+            }),
+            None => Affine3A::IDENTITY,
+        };
         // Attachment bones by local index, with their poses now.
         let mut bone_entities: Vec<Entity> = Vec::new();
         let mut poses: Vec<Affine3A> = Vec::new();
         let mut attachments = Vec::new();
-        let mut missing = None;
         for a in &builder.attachments {
             let bone = a
                 .bone
                 .map(|b| match bone_entities.iter().position(|&e| e == b) {
                     Some(i) => i,
                     None => {
-                        let pose = match bones.get(b) {
-                            Ok((pose, _)) if pose.initialized => pose.current,
-                            Ok((_, global)) => global.affine(),
-                            Err(_) => {
-                                missing = Some(b);
-                                Affine3A::IDENTITY
-                            }
-                        };
+                        poses.push(pose_of(b).unwrap_or_else(|| {
+                            missing = Some(b);
+                            Affine3A::IDENTITY
+                        }));
                         bone_entities.push(b);
-                        poses.push(pose);
                         bone_entities.len() - 1
                     }
                 });
             attachments.push(AttachmentDesc {
                 bone,
                 vertex: a.vertex,
-                point: a.point,
+                point: a.point.map(|p| frame.transform_point3(p)),
                 radius: a.radius,
             });
         }
@@ -272,10 +328,16 @@ pub(crate) fn start_builds(
         let params = builder.params.clone();
         let length_unit = settings.length_unit;
         let task = AsyncComputeTaskPool::get().spawn(async move {
-            let mesh = match mesh {
+            let mut mesh = match mesh {
                 Ok(mesh) => mesh,
-                Err((path, options)) => SurfaceMesh::load(&path, &options)?,
+                Err(Deferred::File(path, options)) => SurfaceMesh::load(&path, &options)?,
+                Err(Deferred::Generated(generator)) => generator.build(&name)?,
             };
+            if frame != Affine3A::IDENTITY {
+                for p in &mut mesh.positions {
+                    *p = frame.transform_point3(*p);
+                }
+            }
             let desc = MuscleDesc {
                 name,
                 mesh,

@@ -71,10 +71,16 @@
 //!   every frame, tinted by activation.
 //! - `ui` (default): [`ui::SinewUiPlugin`], the egui tuning panel.
 //! - `debug` (default): [`debug::SinewDebugPlugin`], gizmos.
+//! - `gltf` (default): skinned glTF characters played by `bevy_animation`
+//!   drive muscles ([`character`]).
 //!
 //! Without features the plug-in runs headless with `MinimalPlugins`.
 
 pub mod build;
+#[cfg(feature = "render")]
+pub mod capture;
+#[cfg(feature = "gltf")]
+pub mod character;
 pub mod components;
 mod constraint_table;
 #[cfg(feature = "debug")]
@@ -106,6 +112,10 @@ pub use systems::{StepContext, simulation_running};
 /// The commonly used items.
 pub mod prelude {
     pub use crate::build::{BuildFailed, MuscleAttachment, MuscleBuilder, MuscleSource};
+    #[cfg(feature = "render")]
+    pub use crate::capture::SinewScreenshotPlugin;
+    #[cfg(feature = "gltf")]
+    pub use crate::character::{CharacterJointError, GltfCharacters};
     pub use crate::components::{
         ActivationCurve, BonePose, BoneTarget, BoneTrack, Compliance, ConstraintSet,
         ConstraintSets, FiberMode, Muscle, MuscleSnapshot, MuscleState, SinewBone, SkeletonDriver,
@@ -309,6 +319,8 @@ impl SinewPlugin {
 
 impl Plugin for SinewPlugin {
     fn build(&self, app: &mut App) {
+        #[cfg(feature = "gltf")]
+        character::register_reflected_types(app);
         app.insert_resource(self.settings.clone())
             .insert_resource(self.pacing)
             .register_type::<SimulationPacing>()

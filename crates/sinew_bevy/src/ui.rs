@@ -6,6 +6,7 @@
 //! on the next frame without a rebuild.
 
 use crate::ResetSimulation;
+use crate::capture::SinewScreenshotPlugin;
 use crate::components::{FiberMode, Muscle, MuscleState};
 use crate::save::SaveScene;
 use crate::scene::SinewSceneRoot;
@@ -15,7 +16,8 @@ pub use bevy_egui;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 use sinew_core::SweepSchedule;
 
-/// Adds the egui panel (and `EguiPlugin` if the app has none).
+/// Adds the egui panel (and `EguiPlugin` if the app has none), and
+/// [`SinewScreenshotPlugin`] (screenshots on request).
 #[derive(Clone, Debug, Default)]
 pub struct SinewUiPlugin;
 
@@ -23,6 +25,9 @@ impl Plugin for SinewUiPlugin {
     fn build(&self, app: &mut App) {
         if !app.is_plugin_added::<EguiPlugin>() {
             app.add_plugins(EguiPlugin::default());
+        }
+        if !app.is_plugin_added::<SinewScreenshotPlugin>() {
+            app.add_plugins(SinewScreenshotPlugin);
         }
         app.add_systems(EguiPrimaryContextPass, panel);
     }

@@ -5,6 +5,7 @@
 
 mod common;
 
+mod character;
 mod drivers;
 mod events;
 mod headless;

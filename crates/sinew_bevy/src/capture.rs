@@ -1,0 +1,57 @@
+//! Screenshots on request (feature `render`): with the environment variable
+//! `SINEW_SCREENSHOT=out.png` set, an app with [`SinewUiPlugin`](crate::ui)
+//! (or [`SinewScreenshotPlugin`]) saves its primary window once the
+//! simulation reaches frame `SINEW_SCREENSHOT_FRAME` (default 90) and exits
+//! ten frames later — how CI and the README's pictures capture the examples
+//! under Xvfb. Without the variable it does nothing.
+
+use crate::settings::SinewClock;
+use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+
+/// Saves a screenshot and exits when `SINEW_SCREENSHOT` asks for one.
+#[derive(Clone, Debug, Default)]
+pub struct SinewScreenshotPlugin;
+
+impl Plugin for SinewScreenshotPlugin {
+    fn build(&self, app: &mut App) {
+        if let Ok(path) = std::env::var("SINEW_SCREENSHOT") {
+            let at = std::env::var("SINEW_SCREENSHOT_FRAME")
+                .ok()
+                .and_then(|f| f.parse().ok())
+                .unwrap_or(90);
+            app.insert_resource(ScreenshotRequest { path, at })
+                .add_systems(Last, take_screenshot);
+        }
+    }
+}
+
+/// Where to save, and at which simulation frame.
+#[derive(Resource)]
+struct ScreenshotRequest {
+    path: String,
+    at: u64,
+}
+
+fn take_screenshot(
+    mut commands: Commands,
+    request: Res<ScreenshotRequest>,
+    clock: Res<SinewClock>,
+    mut frames: Local<u32>,
+    mut taken: Local<Option<u32>>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    *frames += 1;
+    match *taken {
+        None if clock.frame >= request.at => {
+            commands
+                .spawn(Screenshot::primary_window())
+                .observe(save_to_disk(request.path.clone()));
+            *taken = Some(*frames);
+        }
+        Some(t) if *frames > t + 10 => {
+            exit.write(AppExit::Success);
+        }
+        _ => {}
+    }
+}

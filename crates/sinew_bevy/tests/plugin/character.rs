@@ -1,0 +1,207 @@
+//! Bevy's own character path: a skinned glTF written by the test (the core's
+//! two-bone arm), loaded by Bevy's glTF loader, its elbow flexed by
+//! `bevy_animation`; its joints, made bones, drive a muscle placed on the
+//! upper arm and held by the forearm.
+
+#![cfg(feature = "gltf")]
+
+use bevy::animation::AnimationPlugin;
+use bevy::gltf::GltfPlugin;
+use bevy::mesh::MeshPlugin;
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady, WorldSerializationPlugin};
+use sinew_bevy::prelude::*;
+use sinew_core::character::{glb, primitives::two_bone_arm};
+use std::time::Duration;
+
+/// Elbow flexion of the test arm's clip at its peak (t = 1 s), rad.
+const FLEX: f32 = 1.5;
+
+#[derive(Resource, Clone, Copy)]
+struct Joints {
+    upper_arm: Entity,
+    forearm: Entity,
+}
+
+/// A headless app that loads glTF scenes from `dir`, 60 updates per second
+/// of `Time` (the animation's clock and the simulation's agree).
+fn gltf_app(dir: &std::path::Path) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..default()
+        },
+        TransformPlugin,
+        MeshPlugin,
+        AnimationPlugin,
+        WorldSerializationPlugin,
+        GltfPlugin::default(),
+        SinewPlugin::default(),
+    ));
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+        1.0 / 60.0,
+    )));
+    // The glTF loader is registered in `finish` (`App::run` calls it).
+    app.finish();
+    app.cleanup();
+    app
+}
+
+fn on_ready(ready: On<WorldInstanceReady>, mut gltf: GltfCharacters) -> Result {
+    let upper_arm = gltf.bone(ready.entity, "upper_arm")?;
+    let forearm = gltf.bone(ready.entity, "forearm")?;
+    // In the upper arm's frame (the shoulder at its origin, the elbow 30 cm
+    // below): from 5 cm below the shoulder, in front, to 6 cm below the elbow.
+    let (origin, insertion) = (Vec3::new(0.0, -0.05, 0.05), Vec3::new(0.0, -0.36, 0.045));
+    gltf.commands().spawn(
+        MuscleBuilder::new("biceps", MuscleSource::fusiform(origin, insertion, 0.02))
+            .placed_on(upper_arm)
+            .attach(MuscleAttachment::region(upper_arm, origin, 0.012))
+            .attach(MuscleAttachment::region(forearm, insertion, 0.012)),
+    );
+    gltf.play_looped(
+        ready.entity,
+        GltfAssetLabel::Animation(0).from_asset("arm.glb"),
+    )?;
+    gltf.commands()
+        .insert_resource(Joints { upper_arm, forearm });
+    Ok(())
+}
+
+#[test]
+fn gltf_joints_played_by_bevy_animation_drive_a_muscle() {
+    let dir = std::env::temp_dir().join(format!("sinew_gltf_arm_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let arm = two_bone_arm(0.3, 0.04, FLEX);
+    glb::write(&arm, &dir.join("arm.glb")).unwrap();
+
+    let mut app = gltf_app(&dir);
+    // The arm hangs from a shoulder 1.5 m up, moved away from the origin.
+    let at = Transform::from_xyz(0.4, 1.5, -0.2);
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("arm.glb"));
+    app.world_mut()
+        .spawn((WorldAssetRoot(scene), at))
+        .observe(on_ready);
+    let mut built_at = None;
+    for frame in 0..600 {
+        app.update();
+        let mut muscles = app
+            .world_mut()
+            .query_filtered::<Entity, With<MuscleState>>();
+        if muscles.iter(app.world()).next().is_some() {
+            built_at = Some(frame);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(built_at.is_some(), "the muscle was never built");
+    let joints = *app.world().resource::<Joints>();
+    let muscle = app
+        .world_mut()
+        .query_filtered::<Entity, With<MuscleState>>()
+        .single(app.world())
+        .unwrap();
+    let global = |app: &App, e: Entity| *app.world().get::<GlobalTransform>(e).unwrap();
+
+    // The muscle was built on the upper arm where the joint is, not at the
+    // file's origin: its top within the shoulder's reach.
+    let shoulder = global(&app, joints.upper_arm).translation();
+    assert!(
+        (shoulder - Vec3::new(0.4, 1.5, -0.2)).length() < 1e-4,
+        "shoulder at {shoulder}"
+    );
+    let held_by = |app: &App, bone: Entity| -> Vec<u32> {
+        let attachments = app.world().get::<Attachments>(muscle).unwrap();
+        attachments
+            .iter()
+            .filter(|&a| app.world().get::<AttachedTo>(a).map(|t| t.0) == Some(bone))
+            .flat_map(|a| {
+                app.world()
+                    .get::<HeldVertices>(a)
+                    .unwrap()
+                    .vertices()
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    };
+    let (top, bottom) = (
+        held_by(&app, joints.upper_arm),
+        held_by(&app, joints.forearm),
+    );
+    assert!(
+        !top.is_empty() && !bottom.is_empty(),
+        "held by both bones: {top:?} {bottom:?}"
+    );
+    let positions = |app: &App| {
+        app.world()
+            .get::<MuscleState>(muscle)
+            .unwrap()
+            .surface_positions()
+            .to_vec()
+    };
+    let start = positions(&app);
+    for &v in &top {
+        let d = (start[v as usize] - (shoulder + Vec3::new(0.0, -0.05, 0.05))).length();
+        assert!(
+            d < 0.02,
+            "origin vertex {v} is {d} m from the origin on the bone"
+        );
+    }
+    // Its whole surface where it was placed: within its belly radius of the
+    // segment from its origin to its insertion on the posed arm.
+    let (a, b) = (
+        shoulder + Vec3::new(0.0, -0.05, 0.05),
+        shoulder + Vec3::new(0.0, -0.36, 0.045),
+    );
+    for (v, p) in start.iter().enumerate() {
+        let t = ((*p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+        let off = (*p - a.lerp(b, t)).length();
+        assert!(
+            off < 0.021,
+            "vertex {v} at {p} is {off} m off the muscle's axis"
+        );
+    }
+    // Each forearm-held vertex where the forearm's frame had it.
+    let forearm_then = global(&app, joints.forearm).affine().inverse();
+    let local: Vec<Vec3> = bottom
+        .iter()
+        .map(|&v| forearm_then.transform_point3(start[v as usize]))
+        .collect();
+    let length = |p: &[Vec3]| {
+        let centre = |vs: &[u32]| vs.iter().map(|&v| p[v as usize]).sum::<Vec3>() / vs.len() as f32;
+        (centre(&top) - centre(&bottom)).length()
+    };
+    let rest_length = length(&start);
+
+    // Play on to the flexion's peak (t = 1 s of the clip) and a little past.
+    let mut worst = 0.0f32;
+    for _ in 0..60 {
+        app.update();
+        let now = positions(&app);
+        let forearm_now = global(&app, joints.forearm).affine();
+        for (&v, &l) in bottom.iter().zip(&local) {
+            worst = worst.max((forearm_now.transform_point3(l) - now[v as usize]).length());
+        }
+    }
+    let now = positions(&app);
+    assert!(now.iter().all(|p| p.is_finite()));
+    // bevy_animation turned the elbow: the forearm joint's rotation.
+    let (_, rotation, _) = global(&app, joints.forearm).to_scale_rotation_translation();
+    let turned = rotation.angle_between(Quat::IDENTITY);
+    assert!(turned > 0.8 * FLEX, "the elbow flexed {turned} rad");
+    assert!(
+        worst < 1e-3,
+        "held vertices followed the forearm within {worst} m"
+    );
+    let flexed_length = length(&now);
+    assert!(
+        flexed_length < 0.9 * rest_length,
+        "the muscle shortened with the flexion: {rest_length} → {flexed_length} m"
+    );
+}
