@@ -254,6 +254,8 @@ pub(crate) fn start_builds(
                             maps.hard = maps.hard.or(painted.hard);
                             maps.fibers = maps.fibers.or(painted.fibers);
                             maps.mass = maps.mass.or(painted.mass);
+                            maps.tendon = maps.tendon.or(painted.tendon);
+                            maps.damping = maps.damping.or(painted.damping);
                             Ok(mesh)
                         }
                         Err(reason) => {

@@ -1,7 +1,7 @@
 //! Per-vertex maps painted on a Bevy mesh (feature `render`): a muscle
 //! built from a `Handle<Mesh>` ([`crate::build::MuscleSource::Handle`])
-//! takes its Sliding / Soft / Hard weights, mass multipliers and combed
-//! fibres from these vertex attributes when the mesh has them, or its
+//! takes its Sliding / Soft / Hard weights, mass multipliers, combed
+//! fibres, tendon mask and damping multipliers from these vertex attributes when the mesh has them, or its
 //! weights from the vertex colours ([`MapsFromMesh::colors`]). Bevy splits
 //! vertices at UV seams; the plug-in welds them and each welded vertex
 //! takes the value of the first of its copies.
@@ -39,6 +39,14 @@ pub const ATTRIBUTE_MASS_SCALE: MeshVertexAttribute =
 /// zero vector keeps the computed fibre).
 pub const ATTRIBUTE_FIBER: MeshVertexAttribute =
     MeshVertexAttribute::new("Sinew_Fiber", 0x51e3_0005, VertexFormat::Float32x3);
+
+/// Tendon mask per vertex (`f32`, `[0, 1]`; 1: tendon, which neither
+/// shortens nor bulges with activation).
+pub const ATTRIBUTE_TENDON_MASK: MeshVertexAttribute =
+    MeshVertexAttribute::new("Sinew_TendonMask", 0x51e3_0006, VertexFormat::Float32);
+/// Damping multiplier per vertex (`f32`, `≥ 0`) of the muscle's damping rate.
+pub const ATTRIBUTE_DAMPING_SCALE: MeshVertexAttribute =
+    MeshVertexAttribute::new("Sinew_DampingScale", 0x51e3_0007, VertexFormat::Float32);
 
 /// Where a mesh's maps come from, beyond the sinew attributes above.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -111,6 +119,8 @@ pub fn surface_and_maps(
         hard: scalar(ATTRIBUTE_HARD_WEIGHT, Some(2)),
         fibers,
         mass: scalar(ATTRIBUTE_MASS_SCALE, None),
+        tendon: scalar(ATTRIBUTE_TENDON_MASK, None),
+        damping: scalar(ATTRIBUTE_DAMPING_SCALE, None),
     };
     Ok((welded, maps))
 }

@@ -7,7 +7,9 @@
 use crate::common;
 
 use bevy::prelude::*;
-use sinew_bevy::mesh_maps::{ATTRIBUTE_HARD_WEIGHT, ATTRIBUTE_SLIDING_WEIGHT};
+use sinew_bevy::mesh_maps::{
+    ATTRIBUTE_DAMPING_SCALE, ATTRIBUTE_HARD_WEIGHT, ATTRIBUTE_SLIDING_WEIGHT, ATTRIBUTE_TENDON_MASK,
+};
 use sinew_bevy::prelude::*;
 use sinew_core::BuildError;
 use sinew_core::muscle::Roots;
@@ -50,6 +52,8 @@ fn vertex_attributes_become_the_muscles_maps() {
         |mesh, n| {
             mesh.insert_attribute(ATTRIBUTE_HARD_WEIGHT, vec![0.0f32; n]);
             mesh.insert_attribute(ATTRIBUTE_SLIDING_WEIGHT, vec![0.75f32; n]);
+            mesh.insert_attribute(ATTRIBUTE_TENDON_MASK, vec![0.25f32; n]);
+            mesh.insert_attribute(ATTRIBUTE_DAMPING_SCALE, vec![3.0f32; n]);
         },
         false,
     );
@@ -58,6 +62,8 @@ fn vertex_attributes_become_the_muscles_maps() {
     let n = m.surface_count;
     assert_eq!(m.maps.hard.as_deref(), Some(&vec![0.0; n][..]));
     assert_eq!(m.maps.sliding.as_deref(), Some(&vec![0.75; n][..]));
+    assert_eq!(m.maps.tendon.as_deref(), Some(&vec![0.25; n][..]));
+    assert_eq!(m.maps.damping.as_deref(), Some(&vec![3.0; n][..]));
     assert!(m.maps.soft.is_none(), "not painted: the default weight");
 }
 

@@ -48,6 +48,11 @@ pub struct ActivationRest {
     pub edge: Vec<Vec3>,
     /// Unit fibre direction `u` of the edge (sign-aligned mean of the two ends).
     pub fiber: Vec<Vec3>,
+    /// How contractile each constraint is, `k` in `[0, 1]` (1 minus its
+    /// ends' mean tendon mask): its shortening and bulge are `1 + (λ − 1) k`
+    /// and `1 + (β − 1) k` (its contraction `c k` in the paper's formula).
+    /// Empty: every constraint fully contractile.
+    pub contractile: Vec<f32>,
 }
 
 impl ActivationRest {
@@ -59,6 +64,21 @@ impl ActivationRest {
 
     /// Rest length of constraint `i` for the given activation scale.
     pub fn rest_length(&self, i: usize, mode: FiberMode, s: &ActivationScale) -> f32 {
+        match self.contractile.get(i) {
+            None => self.scaled_length(i, mode, s),
+            Some(&k) => {
+                let partial = ActivationScale {
+                    contraction: s.contraction * k,
+                    shortening: 1.0 + (s.shortening - 1.0) * k,
+                    bulge: 1.0 + (s.bulge - 1.0) * k,
+                    ..*s
+                };
+                self.scaled_length(i, mode, &partial)
+            }
+        }
+    }
+
+    fn scaled_length(&self, i: usize, mode: FiberMode, s: &ActivationScale) -> f32 {
         let (e, u) = (self.edge[i], self.fiber[i]);
         match mode {
             FiberMode::PaperExact => {

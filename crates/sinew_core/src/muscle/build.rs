@@ -39,6 +39,8 @@ impl Muscle {
             ("hard", maps.hard.as_ref().map(Vec::len)),
             ("fibers", maps.fibers.as_ref().map(Vec::len)),
             ("mass", maps.mass.as_ref().map(Vec::len)),
+            ("tendon", maps.tendon.as_ref().map(Vec::len)),
+            ("damping", maps.damping.as_ref().map(Vec::len)),
         ] {
             if let Some(len) = len.filter(|&l| l != n) {
                 return Err(BuildError::MapLength {
@@ -239,7 +241,8 @@ fn distances_at_rest(
         compliance,
         ..Default::default()
     };
-    let act = push_at_rest(&mut batch, pairs, &m.rest, &m.fibers);
+    let tendon = m.maps.tendon.as_deref();
+    let act = push_at_rest(&mut batch, pairs, &m.rest, &m.fibers, tendon);
     if follows_activation {
         batch.activation = Some(act);
     }
@@ -248,15 +251,27 @@ fn distances_at_rest(
 
 /// Pushes a distance constraint between each pair of particles onto
 /// `batch` at its rest length, and returns what its activation-driven rest
-/// length needs (the rest edge and the fibre across it, per constraint).
+/// length needs (the rest edge and the fibre across it, per constraint, and
+/// with a tendon mask — one value per surface vertex; particles past them
+/// are internal, belly — how contractile it is).
 fn push_at_rest(
     batch: &mut DistanceBatch,
     pairs: impl Iterator<Item = [u32; 2]>,
     rest: &[Vec3],
     fibers: &[Vec3],
+    tendon: Option<&[f32]>,
 ) -> ActivationRest {
     let mut act = ActivationRest::default();
+    let mask = |i: u32| {
+        tendon
+            .and_then(|t| t.get(i as usize))
+            .copied()
+            .unwrap_or(0.0)
+    };
     for [a, b] in pairs {
+        if tendon.is_some() {
+            act.contractile.push(1.0 - 0.5 * (mask(a) + mask(b)));
+        }
         let (pa, pb) = (rest[a as usize], rest[b as usize]);
         batch.push(ParticleId::new(a), ParticleId::new(b), pa.distance(pb));
         act.edge.push(pa - pb);

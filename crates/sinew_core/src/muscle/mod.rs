@@ -144,6 +144,15 @@ pub struct VertexMaps {
     pub fibers: Option<Vec<Vec3>>,
     /// Mass multiplier per vertex.
     pub mass: Option<Vec<f32>>,
+    /// Tendon mask per vertex, in `[0, 1]`: 1 is tendon, which neither
+    /// shortens nor bulges with activation; 0 is contractile belly; between,
+    /// in proportion. An edge takes the mean of its two ends (an internal
+    /// point counts as belly). Default: none (all belly).
+    pub tendon: Option<Vec<f32>>,
+    /// Damping multiplier per vertex (`≥ 0`) of the muscle's damping rate
+    /// [`MuscleParams::damping`] (1/s): 0 undamped, 2 twice as damped.
+    /// Internal points keep the muscle's rate. Default: none (1 everywhere).
+    pub damping: Option<Vec<f32>>,
 }
 
 impl VertexMaps {
@@ -176,6 +185,19 @@ impl VertexMaps {
                 v,
                 m,
                 "a mass multiplier must be finite and > 0",
+            ));
+        }
+        let mut tendon = self.tendon.iter().flatten().enumerate();
+        if let Some((v, &t)) = tendon.find(|(_, t)| !(0.0..=1.0).contains(*t)) {
+            return Err(bad("tendon", v, t, "a tendon mask must be in [0, 1]"));
+        }
+        let mut damping = self.damping.iter().flatten().enumerate();
+        if let Some((v, &d)) = damping.find(|(_, d)| !(d.is_finite() && **d >= 0.0)) {
+            return Err(bad(
+                "damping",
+                v,
+                d,
+                "a damping multiplier must be finite and ≥ 0",
             ));
         }
         let mut fibers = self.fibers.iter().flatten().enumerate();

@@ -232,12 +232,28 @@ pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> 
 /// `h` seconds the velocity keeps `e^(−c h)` (`c` =
 /// [`crate::muscle::MuscleParams::damping`], per second), so the decay per
 /// second is the same at any frame rate and substep count.
+/// A damping map ([`crate::muscle::VertexMaps::damping`]) scales `c` per
+/// surface vertex.
 fn integrate(m: &mut Muscle, gravity: Vec3, h: f32) {
     let keep = (-m.params.damping * h).exp();
-    for i in 0..m.x.len() {
-        let v = (m.v[i] + h * gravity) * keep;
-        m.v[i] = v;
-        m.p[i] = m.x[i] + h * v;
+    match m.maps.damping.as_deref() {
+        None => {
+            for i in 0..m.x.len() {
+                let v = (m.v[i] + h * gravity) * keep;
+                m.v[i] = v;
+                m.p[i] = m.x[i] + h * v;
+            }
+        }
+        Some(scale) => {
+            for i in 0..m.x.len() {
+                let keep = scale
+                    .get(i)
+                    .map_or(keep, |s| (-m.params.damping * s * h).exp());
+                let v = (m.v[i] + h * gravity) * keep;
+                m.v[i] = v;
+                m.p[i] = m.x[i] + h * v;
+            }
+        }
     }
 }
 
