@@ -73,6 +73,8 @@
 //! - `debug` (default): [`debug::SinewDebugPlugin`], gizmos.
 //! - `gltf` (default): skinned glTF characters played by `bevy_animation`
 //!   drive muscles ([`character`]).
+//! - `hot_reload` (default): scene files are watched (Bevy's
+//!   `file_watcher`); an edited `.ron` scene is spawned again ([`save`]).
 //!
 //! Without features the plug-in runs headless with `MinimalPlugins`.
 
@@ -330,6 +332,7 @@ impl Plugin for SinewPlugin {
             .init_resource::<StepContext>()
             .init_resource::<systems::ValidSettings>()
             .init_resource::<systems::SolverWorkers>()
+            .init_resource::<save::SavedScenes>()
             .add_message::<ResetSimulation>()
             .add_message::<events::MuscleBuilt>()
             .add_message::<events::MuscleBuildFailed>()

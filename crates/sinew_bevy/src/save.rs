@@ -59,6 +59,14 @@ pub enum SceneSaveError {
     Scene(#[from] sinew_core::SceneError),
 }
 
+/// Scenes just saved over their own asset file, by asset: when the file
+/// watcher reloads that file and it holds exactly what was saved, the
+/// running scene already has it and is not spawned again.
+#[derive(Resource, Default, Debug)]
+pub(crate) struct SavedScenes(
+    pub(crate) bevy::platform::collections::HashMap<AssetId<SinewScene>, Scene>,
+);
+
 /// Where the default asset source reads files from (set when the app has
 /// an [`AssetPlugin`]).
 #[derive(Resource, Clone, Debug)]
@@ -87,12 +95,13 @@ pub fn tuned_scene(
     tuned
 }
 
-/// Scene assets and the files they come from.
+/// Scene assets, the files they come from, and what was saved over them.
 #[derive(SystemParam)]
 pub(crate) struct SceneFiles<'w> {
     scenes: Option<Res<'w, Assets<SinewScene>>>,
     server: Option<Res<'w, AssetServer>>,
     folder: Option<Res<'w, SceneFolder>>,
+    saved: ResMut<'w, SavedScenes>,
 }
 
 impl SceneFiles<'_> {
@@ -105,13 +114,18 @@ impl SceneFiles<'_> {
             .map(|(p, f)| f.0.join(p.path()));
         Some((scene, file))
     }
+
+    /// Remembers that `scene` was written over the file of `handle`.
+    fn remember(&mut self, handle: &Handle<SinewScene>, scene: Scene) {
+        self.saved.0.insert(handle.id(), scene);
+    }
 }
 
 /// Handles [`SaveScene`].
 pub(crate) fn save_scenes(
     mut requests: MessageReader<SaveScene>,
     roots: Query<(&SinewSceneRoot, &SpawnedScene)>,
-    files: SceneFiles,
+    mut files: SceneFiles,
     muscles: Query<&Muscle>,
     settings: Res<SinewSettings>,
     mut log: ResMut<SinewLog>,
@@ -129,6 +143,7 @@ pub(crate) fn save_scenes(
                     files.get(handle).ok_or(SceneSaveError::NotAScene(root))?
                 }
             };
+            let own_file = request.path.is_none() || request.path == file;
             let path = request
                 .path
                 .clone()
@@ -136,6 +151,9 @@ pub(crate) fn save_scenes(
                 .ok_or_else(|| SceneSaveError::NoPath(scene.name.clone()))?;
             let tuned = tuned_scene(scene, spawned, |e| muscles.get(e).ok().cloned(), &settings);
             tuned.save(&path)?;
+            if let (SinewSceneRoot::Asset(handle), true) = (source, own_file) {
+                files.remember(handle, tuned);
+            }
             Ok(path)
         })();
         match saved {
@@ -161,10 +179,13 @@ pub(crate) fn save_scenes(
 
 /// Spawns again every scene whose asset changed (reloaded from disk or
 /// edited in [`Assets`]): its entities are despawned and the new scene is
-/// spawned in their place this frame.
+/// spawned in their place this frame — unless the change is the reload of
+/// what [`SaveScene`] just wrote over it (the running scene has that).
 pub(crate) fn respawn_changed_scenes(
     mut changes: MessageReader<AssetEvent<SinewScene>>,
     mut roots: Query<(&SinewSceneRoot, &mut SpawnedScene)>,
+    scenes: Res<Assets<SinewScene>>,
+    mut saved_scenes: ResMut<SavedScenes>,
     mut log: ResMut<SinewLog>,
     mut commands: Commands,
 ) {
@@ -172,6 +193,12 @@ pub(crate) fn respawn_changed_scenes(
         let AssetEvent::Modified { id } = change else {
             continue;
         };
+        if let Some(saved) = saved_scenes.0.remove(id)
+            && scenes.get(*id).is_some_and(|s| s.scene == saved)
+        {
+            log.push("saved scene reloaded from disk: already running".into());
+            continue;
+        }
         for (source, mut spawned) in &mut roots {
             if let SinewSceneRoot::Asset(handle) = source
                 && handle.id() == *id

@@ -1,6 +1,7 @@
 //! Tuning that is kept: a tuned scene saved to RON loads back with the
 //! same values and saves again to the same text; a scene without a file
-//! needs a path (typed error); a scene asset that changes is spawned again.
+//! needs a path (typed error); a scene asset that changes is spawned again,
+//! and a scene file edited on disk too (the file watcher), but not on its own save.
 
 use crate::common;
 
@@ -163,5 +164,66 @@ fn a_changed_scene_asset_is_spawned_again() {
     assert!(
         app.world().get_entity(before[0]).is_err(),
         "the old muscle went"
+    );
+}
+
+/// Updates (5 ms apart) until `done` or `seconds` pass; whether it got there.
+fn update_for(app: &mut App, seconds: f32, done: impl Fn(&App) -> bool) -> bool {
+    let start = std::time::Instant::now();
+    while start.elapsed().as_secs_f32() < seconds {
+        app.update();
+        if done(app) {
+            return true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    false
+}
+
+#[cfg(feature = "hot_reload")]
+#[test]
+fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
+    let dir =
+        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("sinew_hot_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("scene.ron");
+    builtin("P1").unwrap().save(&file).unwrap();
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            watch_for_changes_override: Some(true),
+            ..default()
+        },
+        bevy::transform::TransformPlugin,
+        SinewPlugin::default().every_update(),
+    ));
+    let handle = app.world().resource::<AssetServer>().load("scene.ron");
+    let root = app.world_mut().spawn(SinewSceneRoot::Asset(handle)).id();
+    let spawned = |app: &App| {
+        app.world()
+            .get::<SpawnedScene>(root)
+            .map(|s| s.muscles.clone())
+            .unwrap_or_default()
+    };
+    assert!(
+        update_for(&mut app, 5.0, |app| spawned(app).len() == 1),
+        "P1 loaded"
+    );
+    let before = spawned(&app);
+
+    // Saved over its own file: the watcher reloads it, the scene keeps running.
+    app.world_mut()
+        .write_message(SaveScene { root, path: None });
+    let respawned = update_for(&mut app, 2.0, |app| spawned(app) != before);
+    assert!(!respawned, "its own save does not restart the scene");
+    assert_eq!(spawned(&app), before);
+
+    // Edited on disk (here: replaced by P3): spawned again, two muscles.
+    builtin("P3").unwrap().save(&file).unwrap();
+    assert!(
+        update_for(&mut app, 5.0, |app| spawned(app).len() == 2),
+        "the edited file was not spawned again"
     );
 }
