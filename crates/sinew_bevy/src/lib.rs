@@ -98,6 +98,8 @@ pub mod save;
 pub mod scene;
 pub mod sensors;
 pub mod settings;
+#[cfg(feature = "render")]
+pub mod skin_view;
 mod systems;
 #[cfg(feature = "ui")]
 pub mod ui;
@@ -142,6 +144,8 @@ pub mod prelude {
         SensorReading, SensorSlot,
     };
     pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
+    #[cfg(feature = "render")]
+    pub use crate::skin_view::SkinView;
     #[cfg(feature = "ui")]
     pub use crate::ui::SinewUiPlugin;
     pub use crate::{

@@ -39,7 +39,10 @@ impl Default for ActivationTint {
 pub struct MuscleMesh(pub Handle<Mesh>);
 
 pub(crate) fn register(app: &mut App) {
-    app.register_type::<ActivationTint>()
+    app.init_resource::<crate::skin_view::SkinView>()
+        .register_type::<crate::skin_view::SkinView>()
+        .add_systems(PostUpdate, crate::skin_view::apply_skin_view)
+        .register_type::<ActivationTint>()
         .register_type::<TargetFromMesh>()
         .add_systems(
             crate::SinewStepSchedule,

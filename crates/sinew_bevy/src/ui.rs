@@ -55,6 +55,7 @@ fn panel(
     scenes: Query<(Entity, &SinewSceneRoot)>,
     mut muscles: Query<(Entity, &mut Muscle, Option<&MuscleState>)>,
     log: Res<crate::events::SinewLog>,
+    mut skin: Option<ResMut<crate::skin_view::SkinView>>,
     #[cfg(feature = "debug")] mut view: Option<ResMut<crate::debug::SinewDebugView>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
@@ -81,6 +82,13 @@ fn panel(
             {
                 for root in files {
                     save.write(SaveScene { root, path: None });
+                }
+            }
+            if let Some(skin) = skin.as_deref_mut().filter(|s| s.skinned > 0) {
+                let mut xray = skin.xray;
+                ui.checkbox(&mut xray, "skin x-ray (see the muscles under it)");
+                if xray != skin.xray {
+                    skin.xray = xray;
                 }
             }
             ui.separator();

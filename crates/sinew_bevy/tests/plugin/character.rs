@@ -205,3 +205,49 @@ fn gltf_joints_played_by_bevy_animation_drive_a_muscle() {
         "the muscle shortened with the flexion: {rest_length} → {flexed_length} m"
     );
 }
+
+#[test]
+fn skin_xray_blends_the_skinned_materials_and_gives_them_back() {
+    let mut app = crate::common::app();
+    app.add_plugins(AssetPlugin::default())
+        .init_asset::<StandardMaterial>();
+    let mut materials = app.world_mut().resource_mut::<Assets<StandardMaterial>>();
+    let skin = materials.add(StandardMaterial {
+        base_color: Color::srgba(0.8, 0.6, 0.5, 0.9),
+        ..default()
+    });
+    let other = materials.add(StandardMaterial::default());
+    app.world_mut().spawn((
+        bevy::mesh::skinning::SkinnedMesh::default(),
+        MeshMaterial3d(skin.clone()),
+    ));
+    app.world_mut().spawn(MeshMaterial3d(other.clone()));
+    app.update();
+    assert_eq!(app.world().resource::<SkinView>().skinned, 1);
+    let look = |app: &App, h: &Handle<StandardMaterial>| {
+        let m = app
+            .world()
+            .resource::<Assets<StandardMaterial>>()
+            .get(h)
+            .unwrap();
+        (m.alpha_mode, m.base_color.alpha())
+    };
+    assert_eq!(look(&app, &skin), (AlphaMode::Opaque, 0.9));
+    app.world_mut().resource_mut::<SkinView>().xray = true;
+    app.update();
+    let (mode, alpha) = look(&app, &skin);
+    assert_eq!(mode, AlphaMode::Blend);
+    assert!((alpha - 0.27).abs() < 1e-6, "0.3 of its own 0.9: {alpha}");
+    assert_eq!(
+        look(&app, &other),
+        (AlphaMode::Opaque, 1.0),
+        "not skinned: untouched"
+    );
+    app.world_mut().resource_mut::<SkinView>().xray = false;
+    app.update();
+    assert_eq!(
+        look(&app, &skin),
+        (AlphaMode::Opaque, 0.9),
+        "its own look back"
+    );
+}
