@@ -249,13 +249,7 @@ pub(crate) fn start_builds(
                     match crate::mesh_maps::surface_and_maps(&builder.name, mesh, builder.maps_from)
                     {
                         Ok((mesh, painted)) => {
-                            maps.sliding = maps.sliding.or(painted.sliding);
-                            maps.soft = maps.soft.or(painted.soft);
-                            maps.hard = maps.hard.or(painted.hard);
-                            maps.fibers = maps.fibers.or(painted.fibers);
-                            maps.mass = maps.mass.or(painted.mass);
-                            maps.tendon = maps.tendon.or(painted.tendon);
-                            maps.damping = maps.damping.or(painted.damping);
+                            maps = maps.or(painted);
                             Ok(mesh)
                         }
                         Err(reason) => {

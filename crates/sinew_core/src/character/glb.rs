@@ -5,6 +5,7 @@
 //! The output is deterministic: the same character gives the same bytes.
 
 use super::{CharacterError, SkinnedCharacter};
+use crate::mesh::vertex_normals;
 use glam::{Mat4, Vec3};
 use serde_json::{Value, json};
 use std::path::Path;
@@ -36,7 +37,13 @@ pub fn to_bytes(character: &SkinnedCharacter) -> Result<Vec<u8>, CharacterError>
         "VEC3",
         Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
     );
-    let normals = vertex_normals(&character.positions, &character.triangles);
+    // Area-weighted unit normals; glTF wants unit length, so a vertex on no
+    // triangle gets +Y.
+    let mut normals = Vec::new();
+    vertex_normals(&character.triangles, &character.positions, &mut normals);
+    for n in normals.iter_mut().filter(|n| **n == Vec3::ZERO) {
+        *n = Vec3::Y;
+    }
     let normal = buffer.accessor(
         floats(normals.iter().flat_map(|p| p.to_array())),
         Some(ARRAY_BUFFER),
@@ -270,19 +277,6 @@ impl BinaryBuffer {
 
 fn floats(values: impl Iterator<Item = f32>) -> Vec<u8> {
     values.flat_map(f32::to_le_bytes).collect()
-}
-
-/// Area-weighted vertex normals (unit; +Y for a vertex on no triangle).
-fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut normals = vec![Vec3::ZERO; positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        let n = (b - a).cross(c - a);
-        for &i in t {
-            normals[i as usize] += n;
-        }
-    }
-    normals.iter().map(|n| n.normalize_or(Vec3::Y)).collect()
 }
 
 /// The `.glb` container: header, JSON chunk (space-padded), BIN chunk

@@ -11,6 +11,7 @@
 
 use super::{CharacterError, Joint, JointClip, MAX_INFLUENCES, SkinnedCharacter};
 use crate::mesh::ObjGroups;
+use crate::mesh::primitives::{fan_triangles, oriented_outward};
 use glam::Vec3;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -74,16 +75,11 @@ pub fn import(dir: &Path, options: &MakeHumanOptions) -> Result<SkinnedCharacter
         .iter()
         .map(|&i| obj.positions[i] * METRES_PER_UNIT)
         .collect();
-    let mut triangles: Vec<[u32; 3]> = skin
+    let polygons: Vec<Vec<u32>> = skin
         .iter()
-        .flat_map(|poly| (1..poly.len() - 1).map(move |k| [poly[0], poly[k], poly[k + 1]]))
-        .map(|t| t.map(|i| new_index[i as usize]))
+        .map(|poly| poly.iter().map(|&i| new_index[i as usize]).collect())
         .collect();
-    if signed_volume(&positions, &triangles) < 0.0 {
-        for t in &mut triangles {
-            t.swap(1, 2);
-        }
-    }
+    let triangles = fan_triangles(&oriented_outward(&positions, polygons));
 
     // The skeleton, parents before children.
     let rig = read_json(&rig_file)?;
@@ -275,18 +271,6 @@ fn read_weights(
             Ok(slots)
         })
         .collect()
-}
-
-/// Six times the signed volume enclosed by `triangles` (positive when they
-/// face outwards; holes such as eyes and mouth barely change it).
-fn signed_volume(positions: &[Vec3], triangles: &[[u32; 3]]) -> f32 {
-    triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| positions[i as usize]);
-            a.dot(b.cross(c))
-        })
-        .sum()
 }
 
 fn read_json(file: &Path) -> Result<Value, CharacterError> {

@@ -1,6 +1,7 @@
 //! Small skinned characters built in code, for tests and examples.
 
 use super::{Joint, JointClip, MAX_INFLUENCES, SkinnedCharacter};
+use crate::mesh::primitives::{fan_triangles, oriented_outward, tube};
 use glam::Vec3;
 use std::f32::consts::TAU;
 
@@ -12,7 +13,7 @@ use std::f32::consts::TAU;
 /// elbow forward (towards +Z) by `flex_angle` (rad) and back over 2 s.
 pub fn two_bone_arm(segment: f32, radius: f32, flex_angle: f32) -> SkinnedCharacter {
     const SIDES: usize = 12;
-    let rings = 16usize;
+    const RINGS: usize = 16;
     let length = 2.0 * segment;
     let mut positions = Vec::new();
     let mut influences = Vec::new();
@@ -27,8 +28,8 @@ pub fn two_bone_arm(segment: f32, radius: f32, flex_angle: f32) -> SkinnedCharac
         s[1] = (2, 1.0 - upper);
         s
     };
-    for ring in 0..=rings {
-        let y = -length * ring as f32 / rings as f32;
+    for ring in 0..=RINGS {
+        let y = -length * ring as f32 / RINGS as f32;
         for side in 0..SIDES {
             let a = TAU * side as f32 / SIDES as f32;
             positions.push(Vec3::new(radius * a.cos(), y, radius * a.sin()));
@@ -41,20 +42,15 @@ pub fn two_bone_arm(segment: f32, radius: f32, flex_angle: f32) -> SkinnedCharac
     let bottom = positions.len() as u32;
     positions.push(Vec3::new(0.0, -length, 0.0));
     influences.push(slots(0.0));
-    let at = |ring: usize, side: usize| (ring * SIDES + side % SIDES) as u32;
-    let mut triangles = Vec::new();
-    for ring in 0..rings {
-        for side in 0..SIDES {
-            let (a, b) = (at(ring, side), at(ring, side + 1));
-            let (c, d) = (at(ring + 1, side), at(ring + 1, side + 1));
-            triangles.push([a, b, d]);
-            triangles.push([a, d, c]);
-        }
-    }
-    for side in 0..SIDES {
-        triangles.push([top, at(0, side + 1), at(0, side)]);
-        triangles.push([bottom, at(rings, side), at(rings, side + 1)]);
-    }
+    let rings: Vec<Vec<u32>> = (0..=RINGS)
+        .map(|ring| {
+            (0..SIDES)
+                .map(|side| (ring * SIDES + side) as u32)
+                .collect()
+        })
+        .collect();
+    let surface = tube(&rings, Some(top), Some(bottom));
+    let triangles = fan_triangles(&oriented_outward(&positions, surface));
     let joint = |name: &str, parent: Option<usize>, y: f32| Joint {
         name: name.into(),
         parent,

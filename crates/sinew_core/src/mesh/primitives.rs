@@ -156,16 +156,20 @@ impl MeshGenerator {
 
 /// Flips every polygon when the signed volume is negative.
 pub(crate) fn oriented_outward(positions: &[Vec3], mut polygons: Vec<Vec<u32>>) -> Vec<Vec<u32>> {
-    let tris: Vec<[u32; 3]> = polygons
-        .iter()
-        .flat_map(|p| (1..p.len() - 1).map(move |k| [p[0], p[k], p[k + 1]]))
-        .collect();
-    if signed_volume(&tris, positions) < 0.0 {
+    if signed_volume(&fan_triangles(&polygons), positions) < 0.0 {
         for p in &mut polygons {
             p.reverse();
         }
     }
     polygons
+}
+
+/// Each polygon fanned from its first vertex into triangles.
+pub(crate) fn fan_triangles(polygons: &[Vec<u32>]) -> Vec<[u32; 3]> {
+    polygons
+        .iter()
+        .flat_map(|p| (1..p.len() - 1).map(move |k| [p[0], p[k], p[k + 1]]))
+        .collect()
 }
 
 /// Quads between consecutive rings of equal length, plus pole fans at both ends.

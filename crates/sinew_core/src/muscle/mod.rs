@@ -156,6 +156,29 @@ pub struct VertexMaps {
 }
 
 impl VertexMaps {
+    /// These maps, each one missing here taken from `other` (a map given
+    /// here wins).
+    pub fn or(self, other: VertexMaps) -> VertexMaps {
+        let VertexMaps {
+            sliding,
+            soft,
+            hard,
+            fibers,
+            mass,
+            tendon,
+            damping,
+        } = other;
+        VertexMaps {
+            sliding: self.sliding.or(sliding),
+            soft: self.soft.or(soft),
+            hard: self.hard.or(hard),
+            fibers: self.fibers.or(fibers),
+            mass: self.mass.or(mass),
+            tendon: self.tendon.or(tendon),
+            damping: self.damping.or(damping),
+        }
+    }
+
     /// Checks every value: weights finite and ≥ 0, mass multipliers
     /// finite and > 0, fibres finite. `muscle` names the muscle in the
     /// error, which names the map and the vertex.
