@@ -9,20 +9,17 @@ vertex, glTF frame), as the test that calls this script writes it.
 Imports FILE.glb with Blender's own glTF importer, poses it at each TIME (s,
 which must be a key time of the file's first animation), and compares the
 skinned mesh Blender evaluates with linear-blend skinning computed here from
-the file itself (glTF's definition). Prints one line per time and exits
+the file itself (glTF's definition). Prints one RESULT line per time and exits
 non-zero when a vertex differs by more than 1e-5 m, the vertex counts differ,
 or the clip does not move the skin.
 """
-import json
 import os
-import struct
 import sys
 
-import bpy
-import numpy as np
-
-if not hasattr(np, "bool"):
-    np.bool = bool  # Debian's Blender 3.4 glTF importer with NumPy >= 1.24
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+from glb_file import GlbFile, rotation_matrix  # noqa: E402
 
 TOLERANCE = 1e-5
 args = sys.argv[sys.argv.index("--") + 1:]
@@ -31,30 +28,8 @@ path, times = args[0], [float(t) for t in args[1:]]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.import_scene.gltf(filepath=path)
 
-data = open(path, "rb").read()
-json_len = struct.unpack("<I", data[12:16])[0]
-doc = json.loads(data[20:20 + json_len])
-binary = data[20 + json_len + 8:]
-
-
-def accessor(index):
-    a = doc["accessors"][index]
-    view = doc["bufferViews"][a["bufferView"]]
-    kind = {5126: "<f4", 5123: "<u2", 5125: "<u4"}[a["componentType"]]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a["type"]]
-    return np.frombuffer(binary, dtype=kind, count=a["count"] * width,
-                         offset=view["byteOffset"]).reshape(a["count"], width)
-
-
-def rotation_matrix(q):
-    x, y, z, w = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
+glb = GlbFile(path)
+doc, accessor = glb.doc, glb.accessor
 attributes = doc["meshes"][0]["primitives"][0]["attributes"]
 rest = accessor(attributes["POSITION"]).astype(np.float64)
 joints = accessor(attributes["JOINTS_0"])
@@ -111,13 +86,14 @@ for t in times:
     error = np.linalg.norm(got - expected, axis=1).max()
     moved = np.linalg.norm(expected - rest, axis=1).max()
     ok = error <= TOLERANCE and (t == 0 or moved > 0.01)
+    line = (f"RESULT t={t} s (frame {scene.frame_current}): max |Blender - glTF skinning| = "
+            f"{error:.2e} m, skin moved up to {moved:.3f} m")
     expected_dir = os.environ.get("SINEW_EXPECTED")
     if expected_dir:
         sinew = np.fromfile(os.path.join(expected_dir, f"{args[1 + times.index(t)]}.f32"), dtype="<f4")
         sinew_error = np.linalg.norm(got - sinew.reshape(-1, 3), axis=1).max()
         ok &= sinew_error <= TOLERANCE
-        print(f"RESULT t={t} s: max |Blender - sinew skinning| = {sinew_error:.2e} m")
+        line += f", max |Blender - sinew skinning| = {sinew_error:.2e} m"
     failed |= not ok
-    print(f"RESULT t={t} s (frame {scene.frame_current}): max |Blender - glTF skinning| = "
-          f"{error:.2e} m, skin moved up to {moved:.3f} m: {'ok' if ok else 'FAILED'}")
+    print(f"{line}: {'ok' if ok else 'FAILED'}")
 sys.exit(1 if failed else 0)

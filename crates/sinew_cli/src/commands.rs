@@ -1,6 +1,7 @@
 //! `info`, `validate`, `bake` and `scene`.
 
-use sinew_core::mesh::{LoadOptions, append_obj, load_mesh};
+use sinew_core::bake::{Bake, BakeFormat};
+use sinew_core::mesh::{LoadOptions, load_mesh};
 use sinew_core::muscle::{ConstraintCounts, ConstraintKind};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
 use sinew_core::solver::coloring::{ColorGroups, ColorPlan, PlanKind};
@@ -246,45 +247,40 @@ fn report_problems(problems: usize) -> ExitCode {
     }
 }
 
-/// Writes the muscles' surfaces as one OBJ (one object per muscle).
-pub fn write_obj(solver: &Solver, path: &Path) -> std::io::Result<()> {
-    let mut text = String::new();
-    let mut base = 1usize;
-    for m in solver.muscles() {
-        let _ = writeln!(text, "o {}", m.name);
-        append_obj(
-            &mut text,
-            m.surface_positions(),
-            m.mesh.polygons(),
-            base,
-            None,
-        );
-        base += m.surface_count;
-    }
-    std::fs::write(path, text)
-}
-
-pub fn bake(arg: &str, frames: Option<u32>, out: &Path) -> Result<ExitCode> {
+/// Simulates `frames` frames (default: the scene's) and writes them to `out`
+/// in `formats` (see [`sinew_core::bake`]).
+pub fn bake(
+    arg: &str,
+    frames: Option<u32>,
+    out: &Path,
+    formats: &[BakeFormat],
+) -> Result<ExitCode> {
     let (scene, mut solver) = load_solver(arg)?;
     let frames = frames.unwrap_or(scene.frames.max(1));
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let bar = indicatif::ProgressBar::new(frames as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {eta} left")
             .expect("valid template"),
     );
-    write_obj(&solver, &out.join("frame_0000.obj"))?;
-    for f in 1..=frames {
+    let mut bake = Bake::start(&solver, out, formats)?;
+    for _ in 1..=frames {
         solver.step();
-        let file = out.join(format!("frame_{f:04}.obj"));
-        write_obj(&solver, &file).map_err(|e| format!("{}: {e}", file.display()))?;
+        bake.record(&solver)?;
         bar.inc(1);
     }
     bar.finish_and_clear();
     for w in solver.take_warnings() {
         eprintln!("warning: {w}");
     }
-    println!("wrote {} frames to {}", frames + 1, out.display());
+    let recorded = bake.frames();
+    let files = bake.finish()?;
+    let names: Vec<String> = formats.iter().map(|f| f.to_string()).collect();
+    println!(
+        "wrote {recorded} frames ({}) to {}: {} files",
+        names.join(", "),
+        out.display(),
+        files.len()
+    );
     Ok(ExitCode::SUCCESS)
 }
 

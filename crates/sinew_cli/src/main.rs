@@ -9,6 +9,7 @@ mod render;
 mod suite;
 
 use clap::{Parser, Subcommand};
+use sinew_core::bake::BakeFormat;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -33,7 +34,8 @@ enum Command {
         /// Scene file, built-in name, or mesh file.
         input: String,
     },
-    /// Simulate and write one OBJ per frame.
+    /// Simulate and write the result for DCCs: OBJ per frame, `.pc2` point
+    /// caches per muscle, and/or a `.glb` of the rest meshes and animated bones.
     Bake {
         /// Scene file or built-in name.
         scene: String,
@@ -43,6 +45,11 @@ enum Command {
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
+        /// Formats, comma-separated: obj (one file per frame, scene units),
+        /// pc2 (one point cache per muscle, metres), glb (rest meshes and
+        /// the animated bones, metres).
+        #[arg(long, value_delimiter = ',', default_value = "obj")]
+        format: Vec<BakeFormat>,
     },
     /// Per-block ms/frame (median of runs) and ns per constraint-iteration.
     Bench {
@@ -124,7 +131,12 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info { scene } => commands::info(&scene),
         Command::Validate { input } => commands::validate(&input),
-        Command::Bake { scene, frames, out } => commands::bake(&scene, frames, &out),
+        Command::Bake {
+            scene,
+            frames,
+            out,
+            format,
+        } => commands::bake(&scene, frames, &out, &format),
         Command::Bench {
             scene,
             frames,

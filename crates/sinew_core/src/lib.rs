@@ -31,6 +31,8 @@
 //! | [`solver`] | the frame loop, substeps, timers |
 //! | [`scene`] | the RON scene format and the reference scenes P1, P2, T1, P3 |
 //! | [`animation`] | activation curves and bone tracks |
+//! | [`bake`] | simulations written for DCCs: OBJ sequences, `.pc2` point caches, a `.glb` of the rest meshes and the animated skeleton |
+//! | [`character`] | skinned characters (MakeHuman import, linear-blend skinning, `.glb`) |
 //!
 //! ## FAQ
 //!
@@ -41,10 +43,12 @@
 
 pub mod analysis;
 pub mod animation;
+pub mod bake;
 pub mod character;
 pub mod closest;
 pub mod constraints;
 pub mod error;
+mod glb_container;
 pub mod import;
 pub mod mesh;
 pub mod muscle;

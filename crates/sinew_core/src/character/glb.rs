@@ -5,8 +5,8 @@
 //! The output is deterministic: the same character gives the same bytes.
 
 use super::{CharacterError, SkinnedCharacter};
-use crate::mesh::vertex_normals;
-use glam::{Mat4, Vec3};
+use crate::glb_container::{ARRAY_BUFFER, BinaryBuffer, FLOAT, UNSIGNED_SHORT, assemble, floats};
+use glam::Mat4;
 use serde_json::{Value, json};
 use std::path::Path;
 
@@ -25,33 +25,8 @@ pub fn to_bytes(character: &SkinnedCharacter) -> Result<Vec<u8>, CharacterError>
     let mut buffer = BinaryBuffer::default();
     let n = character.positions.len();
 
-    let (lo, hi) = character.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let position = buffer.accessor(
-        floats(character.positions.iter().flat_map(|p| p.to_array())),
-        Some(ARRAY_BUFFER),
-        FLOAT,
-        n,
-        "VEC3",
-        Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
-    );
-    // Area-weighted unit normals; glTF wants unit length, so a vertex on no
-    // triangle gets +Y.
-    let mut normals = Vec::new();
-    vertex_normals(&character.triangles, &character.positions, &mut normals);
-    for n in normals.iter_mut().filter(|n| **n == Vec3::ZERO) {
-        *n = Vec3::Y;
-    }
-    let normal = buffer.accessor(
-        floats(normals.iter().flat_map(|p| p.to_array())),
-        Some(ARRAY_BUFFER),
-        FLOAT,
-        n,
-        "VEC3",
-        None,
-    );
+    let position = buffer.positions(&character.positions);
+    let normal = buffer.normals(&character.triangles, &character.positions);
     let joint_bytes = character
         .influences
         .iter()
@@ -74,20 +49,7 @@ pub fn to_bytes(character: &SkinnedCharacter) -> Result<Vec<u8>, CharacterError>
         "VEC4",
         None,
     );
-    let index_bytes = character
-        .triangles
-        .iter()
-        .flatten()
-        .flat_map(|i| i.to_le_bytes())
-        .collect();
-    let indices = buffer.accessor(
-        index_bytes,
-        Some(ELEMENT_ARRAY_BUFFER),
-        UNSIGNED_INT,
-        character.triangles.len() * 3,
-        "SCALAR",
-        None,
-    );
+    let indices = buffer.indices(&character.triangles);
     let inverse_binds = buffer.accessor(
         floats(
             character
@@ -218,87 +180,4 @@ pub fn to_bytes(character: &SkinnedCharacter) -> Result<Vec<u8>, CharacterError>
         document["animations"] = json!(animations);
     }
     Ok(assemble(&document, buffer.bytes))
-}
-
-/// glTF component types and buffer-view targets.
-const FLOAT: u32 = 5126;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-
-/// The binary chunk under construction, with its views and accessors.
-#[derive(Default)]
-struct BinaryBuffer {
-    bytes: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl BinaryBuffer {
-    /// Appends `data` as a buffer view (4-byte aligned) read by one accessor;
-    /// returns the accessor's index.
-    fn accessor(
-        &mut self,
-        data: Vec<u8>,
-        target: Option<u32>,
-        component_type: u32,
-        count: usize,
-        kind: &str,
-        bounds: Option<(Vec<f32>, Vec<f32>)>,
-    ) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
-        let mut view = json!({
-            "buffer": 0,
-            "byteOffset": self.bytes.len(),
-            "byteLength": data.len(),
-        });
-        if let Some(target) = target {
-            view["target"] = json!(target);
-        }
-        self.bytes.extend(data);
-        self.views.push(view);
-        let mut accessor = json!({
-            "bufferView": self.views.len() - 1,
-            "componentType": component_type,
-            "count": count,
-            "type": kind,
-        });
-        if let Some((min, max)) = bounds {
-            accessor["min"] = json!(min);
-            accessor["max"] = json!(max);
-        }
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
-    }
-}
-
-fn floats(values: impl Iterator<Item = f32>) -> Vec<u8> {
-    values.flat_map(f32::to_le_bytes).collect()
-}
-
-/// The `.glb` container: header, JSON chunk (space-padded), BIN chunk
-/// (zero-padded).
-fn assemble(document: &Value, mut bin: Vec<u8>) -> Vec<u8> {
-    let mut text = document.to_string().into_bytes();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let total = 12 + 8 + text.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend(b"glTF");
-    out.extend(2u32.to_le_bytes());
-    out.extend((total as u32).to_le_bytes());
-    out.extend((text.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(text);
-    out.extend((bin.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(bin);
-    out
 }

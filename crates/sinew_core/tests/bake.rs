@@ -1,0 +1,146 @@
+//! Baking for DCCs: the `.pc2` caches hold exactly the solver's surfaces
+//! frame by frame (in metres, whatever the scene's unit), the `.glb` holds
+//! the rest meshes and one bone key per frame, and bad output folders or
+//! broken caches give typed errors naming the file.
+
+use sinew_core::bake::{Bake, BakeError, BakeFormat, GLB_FILE, obj_file_name, pc2};
+use sinew_core::glam;
+use sinew_core::scene::{Scene, builtin};
+use std::path::{Path, PathBuf};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sinew_bake_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// The JSON chunk of a `.glb`.
+fn glb_json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+}
+
+#[test]
+fn caches_hold_every_frame_of_every_muscle_in_metres() {
+    for unit in [1.0f32, 100.0] {
+        // The same geometry read as metres and as centimetres: the caches
+        // are the scene's positions divided by its unit.
+        let mut scene = builtin("P3").unwrap();
+        scene.settings.length_unit = unit;
+        let mut solver = scene.instantiate(Path::new(".")).unwrap();
+        let out = scratch(&format!("p3_{unit}"));
+        let mut bake = Bake::start(&solver, &out, &BakeFormat::ALL).unwrap();
+        let mut expected = vec![surfaces_in_metres(&solver, unit)];
+        for _ in 0..5 {
+            solver.step();
+            bake.record(&solver).unwrap();
+            expected.push(surfaces_in_metres(&solver, unit));
+        }
+        let files = bake.finish().unwrap();
+        assert_eq!(files.len(), 6 + solver.muscles().len() + 1, "{files:?}");
+        assert!(out.join(obj_file_name(5)).exists());
+        for (m, muscle) in solver.muscles().iter().enumerate() {
+            let cache = pc2::read(&out.join(format!("{}.pc2", muscle.name))).unwrap();
+            assert_eq!((cache.start_frame, cache.sample_rate), (0.0, 1.0));
+            assert_eq!(cache.samples.len(), 6);
+            for (frame, sample) in cache.samples.iter().enumerate() {
+                assert_eq!(sample, &expected[frame][m], "unit {unit} frame {frame}");
+            }
+        }
+        let doc = glb_json(&out.join(GLB_FILE));
+        let nodes = doc["nodes"].as_array().unwrap();
+        assert_eq!(
+            nodes.len(),
+            solver.muscles().len() + solver.bones().len() + 1
+        );
+        assert_eq!(
+            nodes[0]["extras"]["sinew_pc2"],
+            format!("{}.pc2", solver.muscles()[0].name)
+        );
+        // The rest mesh is frame 0 in metres.
+        let max = &doc["accessors"][0]["max"];
+        let max_y = max[1].as_f64().unwrap() as f32;
+        let first = expected[0][0].iter().map(|p| p.y).fold(f32::MIN, f32::max);
+        assert_eq!(max_y, first);
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
+fn surfaces_in_metres(solver: &sinew_core::Solver, unit: f32) -> Vec<Vec<glam::Vec3>> {
+    solver
+        .muscles()
+        .iter()
+        .map(|m| m.surface_positions().iter().map(|&p| p / unit).collect())
+        .collect()
+}
+
+#[test]
+fn moving_bones_get_one_key_per_frame() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let scene = Scene::load(&path).unwrap();
+    let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
+    let out = scratch("t5");
+    let mut bake = Bake::start(&solver, &out, &[BakeFormat::Glb]).unwrap();
+    let first: Vec<_> = solver.bones().iter().map(|b| b.transform).collect();
+    let mut moved = vec![false; first.len()];
+    for _ in 0..40 {
+        solver.step();
+        bake.record(&solver).unwrap();
+        for (b, bone) in solver.bones().iter().enumerate() {
+            moved[b] |= bone.transform != first[b];
+        }
+    }
+    let files = bake.finish().unwrap();
+    assert_eq!(files, [out.join(GLB_FILE)], "only the .glb was asked for");
+    let doc = glb_json(&out.join(GLB_FILE));
+    let moving = moved.iter().filter(|&&m| m).count();
+    assert!(moving > 0, "T5's arm moves");
+    let animation = &doc["animations"][0];
+    assert_eq!(animation["channels"].as_array().unwrap().len(), 3 * moving);
+    let input = animation["samplers"][0]["input"].as_u64().unwrap() as usize;
+    assert_eq!(doc["accessors"][input]["count"], 41);
+    let last = doc["accessors"][input]["max"][0].as_f64().unwrap() as f32;
+    assert!((last - 40.0 * scene.settings.dt).abs() < 1e-6, "{last}");
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn bad_folders_and_broken_caches_are_named() {
+    let solver = builtin("P1").unwrap().instantiate(Path::new(".")).unwrap();
+    // A folder under a regular file cannot be created (even by root).
+    let file = scratch("file");
+    std::fs::write(&file, b"not a folder").unwrap();
+    let out = file.join("bake");
+    match Bake::start(&solver, &out, &[BakeFormat::Pc2]) {
+        Err(BakeError::Io { file, .. }) => assert_eq!(file, out),
+        other => panic!("expected an I/O error naming {}: {other:?}", out.display()),
+    }
+    // A truncated cache.
+    let dir = scratch("broken");
+    let bake = Bake::start(&solver, &dir, &[BakeFormat::Pc2]).unwrap();
+    let cache = bake.finish().unwrap().remove(0);
+    let bytes = std::fs::read(&cache).unwrap();
+    std::fs::write(&cache, &bytes[..bytes.len() - 4]).unwrap();
+    let error = pc2::read(&cache).unwrap_err().to_string();
+    assert!(
+        error.contains(&cache.display().to_string()) && error.contains("size"),
+        "{error}"
+    );
+    std::fs::write(&cache, b"POINTCACHE3").unwrap();
+    let error = pc2::read(&cache).unwrap_err().to_string();
+    assert!(error.contains("signature"), "{error}");
+    // A sample of the wrong size.
+    let mut writer = pc2::Pc2Writer::create(&dir.join("x.pc2"), 3, 0.0, 1.0).unwrap();
+    let error = writer
+        .write_sample(&[glam::Vec3::ZERO; 2])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("x.pc2") && error.contains("2 points"),
+        "{error}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::remove_file(&file).unwrap();
+}
