@@ -4,6 +4,7 @@
 //! `sinew check` (see the README), not here.
 
 use sinew_core::analysis::RunMetrics;
+use sinew_core::glam;
 use sinew_core::scene::Scene;
 use sinew_core::solver::Solver;
 use std::path::{Path, PathBuf};
@@ -226,4 +227,57 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
         moved >= 10,
         "{moved} vertices following a muscle were pushed into a bone"
     );
+}
+
+/// T7 is one body: a single root (the pelvis's six coordinates) carries both
+/// the legs' pelvis and the torso's sacrum, the lumbar vertebrae between them
+/// are drawn, and when the pelvis moves in the walk and the run the torso
+/// goes with it (the sacrum stays fixed on the pelvis).
+#[test]
+fn t7_torso_stands_on_the_moving_pelvis() {
+    let path = scene_path("t7");
+    let scene = Scene::load(&path).unwrap();
+    let skeleton = scene.skeleton.as_ref().unwrap();
+    let roots: Vec<&str> = skeleton
+        .bodies
+        .iter()
+        .filter(|b| b.parent.is_none())
+        .map(|b| b.name.as_str())
+        .collect();
+    assert_eq!(roots, ["root"]);
+    for vertebra in [
+        "lumbar1", "lumbar2", "lumbar3", "lumbar4", "lumbar5", "sacrum",
+    ] {
+        let bone = scene.bones.iter().find(|b| b.name == vertebra).unwrap();
+        assert!(
+            bone.shape.is_some(),
+            "{vertebra} has no mesh: a gap in the spine"
+        );
+    }
+    let rig = skeleton.compile().unwrap();
+    let body = |name: &str| rig.body_index(name).unwrap();
+    let (pelvis, sacrum, torso) = (body("pelvis"), body("sacrum"), body("torso"));
+    let (mut values, mut world) = (Vec::new(), Vec::new());
+    rig.pose_at(0.0, &mut values, &mut world);
+    let rest = world.clone();
+    let on_pelvis = |w: &[glam::Affine3A], b: usize| w[pelvis].inverse() * w[b];
+    for time in [1.3, 2.8, 6.38, 7.1] {
+        rig.pose_at(time, &mut values, &mut world);
+        let moved = (world[pelvis].translation - rest[pelvis].translation).length();
+        let (_, turn) = (rest[pelvis].inverse() * world[pelvis])
+            .to_scale_rotation_translation()
+            .1
+            .to_axis_angle();
+        assert!(
+            moved > 0.005 && turn > 0.03,
+            "t = {time}: pelvis moved {moved} m, turned {turn} rad"
+        );
+        for b in [sacrum, torso] {
+            let drift = on_pelvis(&world, b).translation - on_pelvis(&rest, b).translation;
+            assert!(
+                drift.length() < 1e-5,
+                "t = {time}: body {b} left the pelvis by {drift}"
+            );
+        }
+    }
 }
