@@ -55,7 +55,7 @@ if animation:
         keys[(channel["target"]["node"], channel["target"]["path"])] = accessor(sampler["output"])
 
 
-def node_matrix(i, frame):
+def local_matrix(i, frame):
     node = doc["nodes"][i]
     t = keys.get((i, "translation"), [node.get("translation", [0, 0, 0])] * (frame + 1))[frame]
     r = keys.get((i, "rotation"), [node.get("rotation", [0, 0, 0, 1])] * (frame + 1))[frame]
@@ -64,6 +64,15 @@ def node_matrix(i, frame):
     m[:3, :3] = rotation_matrix(np.asarray(r, dtype=np.float64)) * np.asarray(s, dtype=np.float64)
     m[:3, 3] = t
     return m
+
+
+parent = {c: i for i, node in enumerate(doc["nodes"]) for c in node.get("children", [])}
+
+
+def node_matrix(i, frame):
+    """Node i's world matrix at `frame`: its ancestors' keys composed."""
+    local = local_matrix(i, frame)
+    return node_matrix(parent[i], frame) @ local if i in parent else local
 
 
 muscles, bones = [], []  # (index, node)

@@ -313,6 +313,11 @@ impl SkeletonRig {
         &self.names
     }
 
+    /// A body's parent (a body listed before it), `None` for a root.
+    pub fn parent(&self, body: usize) -> Option<usize> {
+        self.bodies[body].parent
+    }
+
     /// Number of joint values (hinge/slide 1, ball 3).
     pub fn value_count(&self) -> usize {
         self.value_count

@@ -76,33 +76,138 @@ fn surfaces_in_metres(solver: &sinew_core::Solver, unit: f32) -> Vec<Vec<glam::V
         .collect()
 }
 
+/// The JSON chunk and the binary chunk of a `.glb`.
+fn glb_parts(path: &Path) -> (serde_json::Value, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap();
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    (
+        serde_json::from_slice(&bytes[20..20 + len]).unwrap(),
+        bytes[20 + len + 8..].to_vec(),
+    )
+}
+
+/// Accessor `index` of a float `.glb` as flat `f32`s.
+fn floats(doc: &serde_json::Value, bin: &[u8], index: usize) -> Vec<f32> {
+    let accessor = &doc["accessors"][index];
+    let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+    let start = view["byteOffset"].as_u64().unwrap() as usize;
+    let len = view["byteLength"].as_u64().unwrap() as usize;
+    bin[start..start + len]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+/// The skeleton is a node hierarchy keyed once per frame: composing a bone's
+/// ancestors' keys at any frame gives the bone's pose in the solver then.
 #[test]
-fn moving_bones_get_one_key_per_frame() {
+fn the_skeleton_is_a_hierarchy_keyed_every_frame() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
     let scene = Scene::load(&path).unwrap();
     let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
     let out = scratch("t5");
     let mut bake = Bake::start(&solver, &out, &[BakeFormat::Glb]).unwrap();
-    let first: Vec<_> = solver.bones().iter().map(|b| b.transform).collect();
-    let mut moved = vec![false; first.len()];
+    let mut poses = vec![
+        solver
+            .bones()
+            .iter()
+            .map(|b| b.transform)
+            .collect::<Vec<_>>(),
+    ];
     for _ in 0..40 {
         solver.step();
         bake.record(&solver).unwrap();
-        for (b, bone) in solver.bones().iter().enumerate() {
-            moved[b] |= bone.transform != first[b];
-        }
+        poses.push(solver.bones().iter().map(|b| b.transform).collect());
     }
     let files = bake.finish().unwrap();
     assert_eq!(files, [out.join(GLB_FILE)], "only the .glb was asked for");
-    let doc = glb_json(&out.join(GLB_FILE));
-    let moving = moved.iter().filter(|&&m| m).count();
-    assert!(moving > 0, "T5's arm moves");
+    let (doc, bin) = glb_parts(&out.join(GLB_FILE));
+    let nodes = doc["nodes"].as_array().unwrap();
+    let bodies = solver.skeleton().unwrap().body_count();
+    assert_eq!(
+        nodes.len(),
+        solver.muscles().len() + bodies + solver.bones().len() + 1
+    );
+    // Keys per node and path; every sampler has one key per frame, dt apart.
     let animation = &doc["animations"][0];
-    assert_eq!(animation["channels"].as_array().unwrap().len(), 3 * moving);
-    let input = animation["samplers"][0]["input"].as_u64().unwrap() as usize;
-    assert_eq!(doc["accessors"][input]["count"], 41);
-    let last = doc["accessors"][input]["max"][0].as_f64().unwrap() as f32;
-    assert!((last - 40.0 * scene.settings.dt).abs() < 1e-6, "{last}");
+    let mut keys = std::collections::HashMap::new();
+    for channel in animation["channels"].as_array().unwrap() {
+        let sampler = &animation["samplers"][channel["sampler"].as_u64().unwrap() as usize];
+        let input = floats(&doc, &bin, sampler["input"].as_u64().unwrap() as usize);
+        assert_eq!(input.len(), 41);
+        assert!((input[40] - 40.0 * scene.settings.dt).abs() < 1e-6);
+        let node = channel["target"]["node"].as_u64().unwrap() as usize;
+        let path = channel["target"]["path"].as_str().unwrap().to_string();
+        keys.insert(
+            (node, path),
+            floats(&doc, &bin, sampler["output"].as_u64().unwrap() as usize),
+        );
+    }
+    let parent: std::collections::HashMap<usize, usize> = nodes
+        .iter()
+        .enumerate()
+        .flat_map(|(p, n)| {
+            n["children"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(move |c| (c.as_u64().unwrap() as usize, p))
+        })
+        .collect();
+    let vector = |node: usize, path: &str, frame: usize, width: usize| -> Vec<f32> {
+        match keys.get(&(node, path.to_string())) {
+            Some(k) => k[frame * width..(frame + 1) * width].to_vec(),
+            None => nodes[node][path]
+                .as_array()
+                .map(|v| v.iter().map(|x| x.as_f64().unwrap() as f32).collect())
+                .unwrap_or_else(|| {
+                    if path == "scale" {
+                        vec![1.0; 3]
+                    } else if width == 4 {
+                        vec![0.0, 0.0, 0.0, 1.0]
+                    } else {
+                        vec![0.0; 3]
+                    }
+                }),
+        }
+    };
+    let world = |mut node: usize, frame: usize| {
+        let mut pose = glam::Affine3A::IDENTITY;
+        loop {
+            let t = vector(node, "translation", frame, 3);
+            let r = vector(node, "rotation", frame, 4);
+            let s = vector(node, "scale", frame, 3);
+            let local = glam::Affine3A::from_scale_rotation_translation(
+                glam::Vec3::from_slice(&s),
+                glam::Quat::from_slice(&r),
+                glam::Vec3::from_slice(&t),
+            );
+            pose = local * pose;
+            match parent.get(&node) {
+                Some(&p) => node = p,
+                None => return pose,
+            }
+        }
+    };
+    let first_bone = solver.muscles().len() + bodies;
+    let mut moving = 0;
+    for frame in [0, 20, 40] {
+        for (b, expected) in poses[frame].iter().enumerate() {
+            let got = world(first_bone + b, frame);
+            let error = (got.matrix3 - expected.matrix3)
+                .to_cols_array()
+                .iter()
+                .map(|x| x.abs())
+                .fold(0.0, f32::max)
+                .max((got.translation - expected.translation).length());
+            assert!(
+                error < 1e-5,
+                "bone {b} frame {frame}: {got:?} vs {expected:?}"
+            );
+            moving += usize::from(frame > 0 && *expected != poses[0][b]);
+        }
+    }
+    assert!(moving > 0, "T5's arm moves");
     std::fs::remove_dir_all(&out).unwrap();
 }
 

@@ -10,8 +10,9 @@
 //!   `k` = frame `k` (start frame 0, one sample per frame).
 //! - [`BakeFormat::Glb`]: `scene.glb` — every muscle's surface at the first
 //!   frame (the mesh its `.pc2` deforms, same vertex order; the node's
-//!   `extras.sinew_pc2` names the cache) and every bone with its mesh and its
-//!   pose animated over the bake (one key per frame, `dt` apart).
+//!   `extras.sinew_pc2` names the cache), the skeleton's bodies as a node
+//!   hierarchy and every bone with its mesh under its body, their poses
+//!   animated over the bake (one key per frame, `dt` apart).
 //!
 //! `.pc2` and `.glb` are in metres and glTF's axes (+Y up), whatever the
 //! scene's `length_unit`. A Y-up DCC (Maya, Houdini) reads the caches as they
@@ -27,7 +28,7 @@ use crate::mesh::append_obj;
 use crate::solver::Solver;
 use glam::{Affine3A, Vec3};
 use pc2::Pc2Writer;
-use scene_glb::{BoneRecord, MeshRecord};
+use scene_glb::{MeshRecord, NodeRecord};
 use std::collections::HashSet;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -121,9 +122,13 @@ pub struct Bake {
     frame: u32,
     caches: Vec<Pc2Writer>,
     muscles: Vec<MeshRecord>,
-    bones: Vec<BoneRecord>,
-    /// Per recorded frame, every bone's pose (metres), for the `.glb`.
+    /// The skeleton's bodies and the bones, for the `.glb`.
+    nodes: Vec<NodeRecord>,
+    /// Per recorded frame, every node's pose in its parent (metres).
     poses: Vec<Vec<Affine3A>>,
+    /// Scratch for posing the skeleton.
+    skeleton_values: Vec<f32>,
+    skeleton_world: Vec<Affine3A>,
     files: Vec<PathBuf>,
 }
 
@@ -159,22 +164,7 @@ impl Bake {
                 cache,
             });
         }
-        let bones = solver
-            .bones()
-            .iter()
-            .map(|bone| BoneRecord {
-                name: bone.name.clone(),
-                mesh: bone.target.map(|t| {
-                    let target = &solver.targets()[t];
-                    MeshRecord {
-                        name: bone.name.clone(),
-                        positions: in_metres(&target.positions),
-                        triangles: target.triangles.clone(),
-                        cache: None,
-                    }
-                }),
-            })
-            .collect();
+        let nodes = scene_glb::nodes(solver, unit);
         let mut bake = Self {
             out: out.to_path_buf(),
             formats,
@@ -183,8 +173,10 @@ impl Bake {
             frame: 0,
             caches,
             muscles,
-            bones,
+            nodes,
             poses: Vec::new(),
+            skeleton_values: Vec::new(),
+            skeleton_world: Vec::new(),
             files: Vec::new(),
         };
         bake.files
@@ -195,7 +187,9 @@ impl Bake {
 
     /// Records `solver`'s current state as the next frame.
     pub fn record(&mut self, solver: &Solver) -> Result<(), BakeError> {
-        if solver.muscles().len() != self.muscles.len() || solver.bones().len() != self.bones.len()
+        let bodies = solver.skeleton().map_or(0, |rig| rig.body_count());
+        if solver.muscles().len() != self.muscles.len()
+            || solver.bones().len() + bodies != self.nodes.len()
         {
             return Err(BakeError::Invalid {
                 file: self.out.clone(),
@@ -217,17 +211,12 @@ impl Bake {
             cache.write_sample(&positions)?;
         }
         if self.formats.contains(&BakeFormat::Glb) {
-            self.poses.push(
-                solver
-                    .bones()
-                    .iter()
-                    .map(|b| {
-                        let mut pose = b.transform;
-                        pose.translation /= self.unit;
-                        pose
-                    })
-                    .collect(),
-            );
+            self.poses.push(scene_glb::local_poses(
+                solver,
+                self.unit,
+                &mut self.skeleton_values,
+                &mut self.skeleton_world,
+            ));
         }
         self.frame += 1;
         Ok(())
@@ -251,7 +240,7 @@ impl Bake {
                 .file_name()
                 .map_or_else(|| "sinew".into(), |n| n.to_string_lossy().into_owned());
             let bytes =
-                scene_glb::to_bytes(&name, &self.muscles, &self.bones, &self.poses, self.dt);
+                scene_glb::to_bytes(&name, &self.muscles, &self.nodes, &self.poses, self.dt);
             std::fs::write(&file, bytes).map_err(|source| BakeError::Io {
                 file: file.clone(),
                 source,

@@ -1,11 +1,14 @@
-//! The bake's `.glb`: every muscle's surface at the first baked frame and
-//! every bone (its mesh, if it has one) with its pose animated over the bake,
-//! in metres. The muscles' motion is in their `.pc2` caches, whose file names
+//! The bake's `.glb`: every muscle's surface at the first baked frame, the
+//! skeleton's bodies as a node hierarchy, and every bone (its mesh, if it has
+//! one) under the body it follows, their poses animated over the bake, in
+//! metres. The muscles' motion is in their `.pc2` caches, whose file names
 //! the muscle nodes carry in their `extras` (`"sinew_pc2"`); `extras` also
-//! give each node's index among the solver's muscles (`"sinew_muscle"`) or
-//! bones (`"sinew_bone"`), for tools that match them by position in a list.
+//! give each node's index among the solver's muscles (`"sinew_muscle"`),
+//! skeleton bodies (`"sinew_body"`) or bones (`"sinew_bone"`), for tools that
+//! match them by position in a list.
 
 use crate::glb_container::{BinaryBuffer, FLOAT, assemble, floats};
+use crate::solver::Solver;
 use glam::{Affine3A, Quat, Vec3};
 use serde_json::{Value, json};
 
@@ -19,23 +22,92 @@ pub(super) struct MeshRecord {
     pub cache: Option<String>,
 }
 
-/// A bone as written: its mesh in its own frame (metres), if any.
+/// A skeleton body or a bone as written: a node under `parent` (an earlier
+/// node; `None`: the scene's root) with its mesh in its own frame (metres),
+/// if any.
 #[derive(Clone, Debug)]
-pub(super) struct BoneRecord {
+pub(super) struct NodeRecord {
     pub name: String,
+    pub parent: Option<usize>,
     pub mesh: Option<MeshRecord>,
+    pub extras: Value,
+}
+
+/// The skeleton's bodies (in the rig's order) then the bones, each bone
+/// under the body it follows.
+pub(super) fn nodes(solver: &Solver, unit: f32) -> Vec<NodeRecord> {
+    let mut nodes: Vec<NodeRecord> = solver.skeleton().map_or_else(Vec::new, |rig| {
+        (0..rig.body_count())
+            .map(|b| NodeRecord {
+                name: rig.body_names()[b].clone(),
+                parent: rig.parent(b),
+                mesh: None,
+                extras: json!({ "sinew_body": b }),
+            })
+            .collect()
+    });
+    let bodies = nodes.len();
+    for (b, bone) in solver.bones().iter().enumerate() {
+        let mesh = bone.target.map(|t| {
+            let target = &solver.targets()[t];
+            MeshRecord {
+                name: bone.name.clone(),
+                positions: target.positions.iter().map(|&p| p / unit).collect(),
+                triangles: target.triangles.clone(),
+                cache: None,
+            }
+        });
+        nodes.push(NodeRecord {
+            name: bone.name.clone(),
+            parent: bone.body.filter(|&body| body < bodies),
+            mesh,
+            extras: json!({ "sinew_bone": b }),
+        });
+    }
+    nodes
+}
+
+/// Every node's pose in its parent's frame now (translations in metres), in
+/// the order of [`nodes`]; `values` and `world` are scratch.
+pub(super) fn local_poses(
+    solver: &Solver,
+    unit: f32,
+    values: &mut Vec<f32>,
+    world: &mut Vec<Affine3A>,
+) -> Vec<Affine3A> {
+    world.clear();
+    if let Some(rig) = solver.skeleton() {
+        rig.pose_at(solver.time(), values, world);
+    }
+    let in_metres = |mut pose: Affine3A| {
+        pose.translation /= unit;
+        pose
+    };
+    let bodies = world.len();
+    let mut poses: Vec<Affine3A> = (0..bodies)
+        .map(|b| {
+            let parent = solver.skeleton().and_then(|rig| rig.parent(b));
+            in_metres(parent.map_or(world[b], |p| world[p].inverse() * world[b]))
+        })
+        .collect();
+    poses.extend(solver.bones().iter().map(|bone| {
+        let body = bone.body.filter(|&b| b < bodies);
+        in_metres(body.map_or(bone.transform, |b| world[b].inverse() * bone.transform))
+    }));
+    poses
 }
 
 /// Material indices of the document.
 const MUSCLE_MATERIAL: usize = 0;
 const BONE_MATERIAL: usize = 1;
 
-/// The `.glb` bytes: `muscles` at rest, `bones` posed by `poses` (per frame,
-/// per bone, translations in metres), frames `dt` seconds apart.
+/// The `.glb` bytes: `muscles` at rest, `nodes` posed by `poses` (per
+/// frame, per node, in its parent's frame, translations in metres), frames
+/// `dt` seconds apart.
 pub(super) fn to_bytes(
     name: &str,
     muscles: &[MeshRecord],
-    bones: &[BoneRecord],
+    nodes: &[NodeRecord],
     poses: &[Vec<Affine3A>],
     dt: f32,
 ) -> Vec<u8> {
@@ -57,7 +129,7 @@ pub(super) fn to_bytes(
         meshes.len() - 1
     };
 
-    let mut nodes: Vec<Value> = Vec::new();
+    let mut written: Vec<Value> = Vec::new();
     for (m, muscle) in muscles.iter().enumerate() {
         let mesh = mesh_of(&mut buffer, muscle, MUSCLE_MATERIAL);
         let mut node =
@@ -65,34 +137,48 @@ pub(super) fn to_bytes(
         if let Some(cache) = &muscle.cache {
             node["extras"]["sinew_pc2"] = json!(cache);
         }
-        nodes.push(node);
+        written.push(node);
     }
-    let first_bone = nodes.len();
-    for (b, bone) in bones.iter().enumerate() {
-        let (scale, rotation, translation) = poses[0][b].to_scale_rotation_translation();
+    let first_node = written.len();
+    for (k, record) in nodes.iter().enumerate() {
+        let (scale, rotation, translation) = poses[0][k].to_scale_rotation_translation();
         let mut node = json!({
-            "name": bone.name,
+            "name": record.name,
             "translation": translation.to_array(),
             "rotation": rotation.to_array(),
-            "extras": { "sinew_bone": b },
+            "extras": record.extras,
         });
         if !scale.abs_diff_eq(Vec3::ONE, 1e-6) {
             node["scale"] = json!(scale.to_array());
         }
-        if let Some(mesh) = &bone.mesh {
+        if let Some(mesh) = &record.mesh {
             node["mesh"] = json!(mesh_of(&mut buffer, mesh, BONE_MATERIAL));
         }
-        nodes.push(node);
+        let children: Vec<usize> = (0..nodes.len())
+            .filter(|&c| nodes[c].parent == Some(k))
+            .map(|c| first_node + c)
+            .collect();
+        if !children.is_empty() {
+            node["children"] = json!(children);
+        }
+        written.push(node);
     }
-    let root = nodes.len();
-    nodes.push(json!({ "name": name, "children": (0..root).collect::<Vec<_>>() }));
+    let root = written.len();
+    let top: Vec<usize> = (0..first_node)
+        .chain(
+            (0..nodes.len())
+                .filter(|&k| nodes[k].parent.is_none())
+                .map(|k| first_node + k),
+        )
+        .collect();
+    written.push(json!({ "name": name, "children": top }));
 
-    let animation = bone_animation(&mut buffer, poses, dt, first_bone);
+    let animation = node_animation(&mut buffer, poses, dt, first_node);
     let mut document = json!({
         "asset": { "version": "2.0", "generator": "sinew bake (MSXPBD muscle simulation)" },
         "scene": 0,
         "scenes": [{ "name": name, "nodes": [root] }],
-        "nodes": nodes,
+        "nodes": written,
         "meshes": meshes,
         "materials": [
             {
@@ -123,15 +209,15 @@ pub(super) fn to_bytes(
 }
 
 /// One animation with a translation, rotation and scale channel for every
-/// bone whose pose changes over `poses`; `None` when none does.
-fn bone_animation(
+/// node whose pose changes over `poses`; `None` when none does.
+fn node_animation(
     buffer: &mut BinaryBuffer,
     poses: &[Vec<Affine3A>],
     dt: f32,
-    first_bone_node: usize,
+    first_node: usize,
 ) -> Option<Value> {
-    let bone_count = poses.first().map_or(0, Vec::len);
-    let moving: Vec<usize> = (0..bone_count)
+    let node_count = poses.first().map_or(0, Vec::len);
+    let moving: Vec<usize> = (0..node_count)
         .filter(|&b| poses.iter().any(|frame| frame[b] != poses[0][b]))
         .collect();
     if moving.is_empty() || poses.len() < 2 {
@@ -164,7 +250,7 @@ fn bone_animation(
             rotations.push(r);
             scales.push(s);
         }
-        let node = first_bone_node + b;
+        let node = first_node + b;
         for (path, values, kind) in [
             ("translation", vec3_floats(&translations), "VEC3"),
             (
