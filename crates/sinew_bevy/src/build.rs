@@ -343,6 +343,8 @@ pub(crate) fn start_builds(
                 targets: Vec::<TargetRef>::new(),
                 params,
                 maps,
+                // Muscles are not skin-bound; a skin layer is built apart.
+                binding: None,
             };
             Ok(CoreMuscle::build(desc, length_unit, |b| poses[b])?)
         });

@@ -26,7 +26,7 @@
 //! |---|---|
 //! | [`mesh`] | OBJ/STL loading, welding, validation, volume, primitives |
 //! | [`muscle`] | internal structure, fibres, masses, the muscle's own constraints |
-//! | [`constraints`] | the nine constraint types and the XPBD update |
+//! | [`constraints`] | the constraint kernels (point, distance, sliding, volume) and the XPBD update |
 //! | [`closest`] | target surfaces (bones, planes, muscles) and closest-point queries |
 //! | [`solver`] | the frame loop, substeps, timers |
 //! | [`scene`] | the RON scene format and the reference scenes P1, P2, T1, P3 |

@@ -17,6 +17,7 @@ fn oval(attachments: Vec<AttachmentDesc>) -> Result<Muscle, BuildError> {
         targets: Vec::new(),
         params: Default::default(),
         maps: Default::default(),
+        binding: None,
     };
     Muscle::build(desc, 1.0, |_| Affine3A::IDENTITY)
 }

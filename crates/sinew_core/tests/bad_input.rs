@@ -30,6 +30,7 @@ fn oval_desc() -> MuscleDesc {
         targets: Vec::new(),
         params: MuscleParams::default(),
         maps: VertexMaps::default(),
+        binding: None,
     }
 }
 

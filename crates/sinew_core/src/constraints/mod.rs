@@ -1,4 +1,5 @@
-//! The nine MSXPBD constraint types, stored as structure-of-arrays batches.
+//! The constraint types — MSXPBD's nine and sinew's Bind (a skin held to
+//! its skinned position) — stored as structure-of-arrays batches.
 //!
 //! Every constraint is solved with the XPBD update (SPEC §3.1, Macklin's sign):
 //!
@@ -11,7 +12,7 @@
 //! | Type | Batch | C |
 //! |---|---|---|
 //! | Fiber, Internal, Branch | [`DistanceBatch`] | `|p_a − p_b| − σ̂(a)` |
-//! | Attach, BranchAttach, Soft, Hard | [`PointBatch`] | `|p − q| − d0` |
+//! | Attach, BranchAttach, Bind, Soft, Hard | [`PointBatch`] | `|p − q| − d0` |
 //! | Sliding | [`SlidingBatch`] | `|p − c| − d0`, or `n·(p − c) − d0` inside |
 //! | Volume | [`VolumeConstraint`] | `V(p) − k_p(a) V0` |
 //!

@@ -1,11 +1,13 @@
 //! Particle ↔ external point constraints: Attach, BranchAttach (SPEC §5.5–5.6),
-//! Soft and Hard (§5.8–5.9). The external point `q` is read-only (`w = 0`).
+//! Soft and Hard (§5.8–5.9), and Bind (a skin vertex ↔ its linear-blend
+//! skinned position). The external point `q` is read-only (`w = 0`).
 //!
 //! ```text
 //! C = |p − q| − d0        ∇_p C = (p − q)/|p − q|
 //! Attach/BranchAttach: q = M(t) ℓ, d0 = 0
 //! Soft:  q = Σ β_k q_{T,k}(t), d0 = rest distance
 //! Hard:  q = c0(t) + F(t) ℓ,   d0 = 0
+//! Bind:  q = Σ w_k M_k(t) ℓ_k,  d0 = 0
 //! ```
 
 use super::{ConstraintBatch, Correction, Gathered, ParticleId, delta_lambda};

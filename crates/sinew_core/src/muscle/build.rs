@@ -22,6 +22,7 @@ impl Muscle {
             targets,
             params,
             maps,
+            binding,
         } = desc;
         params.validate(&name)?;
         if !(length_unit > 0.0 && length_unit.is_finite()) {
@@ -127,6 +128,10 @@ impl Muscle {
         // Particles.
         let mut rest = mesh.positions.clone();
         rest.extend_from_slice(&structure.points);
+        let binding = match &binding {
+            Some(desc) => desc.resolve(&name, &mesh.positions, None, &bone_transform)?,
+            None => Vec::new(),
+        };
         let w = mass::inverse_masses(&mesh, &structure, &params, &maps, length_unit);
         let nparticles = rest.len();
         let mut muscle = Self {
@@ -144,6 +149,7 @@ impl Muscle {
             rest,
             surface_count: n,
             attachments: Vec::new(),
+            binding,
             targets,
             constraints: MuscleConstraints::default(),
             maps,

@@ -48,6 +48,10 @@ macro_rules! constraint_types {
                 /// BranchAttach: internal point ↔ attachment point.
                 BranchAttach => branch_attach: $crate::constraints::PointBatch,
                     "BrAttach", compliance 0.0, column 2, made (when linked);
+                /// Bind: surface vertex ↔ its linear-blend skinned position
+                /// (a skin layer following its skeleton; a soft spring).
+                Bind => bind: $crate::constraints::PointBatch,
+                    "Bind", compliance 0.05, column 8, made (by $crate::muscle::bind_constraints);
                 /// Hard: vertex ↔ its rest transform on a target triangle.
                 Hard => hard: $crate::constraints::PointBatch,
                     "Hard", compliance 5e-3, column 5, made (when linked);
@@ -74,7 +78,7 @@ macro_rules! constraint_types {
                 /// activation-driven gain (0 compliance: the gain is
                 /// reached exactly).
                 Volume => volume: $crate::constraints::VolumeConstraint,
-                    "Volume", compliance 0.0, column 8;
+                    "Volume", compliance 0.0, column 9;
             }
         }
     };

@@ -5,6 +5,7 @@
 //! the solver once every target exists; what the solver derives from a
 //! muscle lives in its workspace, not here.
 
+mod binding;
 mod build;
 mod constraints;
 mod fiber;
@@ -12,6 +13,7 @@ mod internal;
 mod mass;
 mod params;
 
+pub use binding::{BoundVertex, MAX_BONES, SkinBindingDesc, bind_constraints, update_bind_goals};
 pub use build::{branch_links, fiber_edges, internal_links};
 pub(crate) use constraints::{BATCHED_KINDS, MuscleLambdas};
 pub use constraints::{Compliances, ConstraintCounts, ConstraintKind, MuscleConstraints};
@@ -253,6 +255,9 @@ pub struct MuscleDesc {
     pub params: MuscleParams,
     /// Per-vertex maps.
     pub maps: VertexMaps,
+    /// Skin binding: surface vertices held softly to their linear-blend
+    /// skinned positions (a character's skin layer). `None`: unbound.
+    pub binding: Option<SkinBindingDesc>,
 }
 
 /// A resolved attachment.
@@ -324,6 +329,9 @@ pub struct Muscle {
     pub surface_count: usize,
     /// Resolved attachments.
     pub attachments: Vec<Attachment>,
+    /// Surface vertices bound to bones by skinning weights (see
+    /// [`SkinBindingDesc`]), one Bind constraint each.
+    pub binding: Vec<BoundVertex>,
     /// Targets, in the order given.
     pub targets: Vec<TargetRef>,
     /// Constraint batches.
@@ -493,6 +501,9 @@ impl Muscle {
         k.internal.compliance = p.internal;
         k.attach.compliance.fill(p.attach);
         k.branch_attach.compliance.fill(p.branch_attach);
+        for (c, b) in k.bind.compliance.iter_mut().zip(&self.binding) {
+            *c = p.bind / b.strength;
+        }
         let volume = self.volume_compliance();
         if let Some(v) = &mut self.constraints.volume {
             v.compliance = volume;

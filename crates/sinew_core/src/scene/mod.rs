@@ -345,6 +345,7 @@ impl Scene {
                 targets,
                 params: m.params.clone(),
                 maps: m.maps.clone(),
+                binding: None,
             });
         }
         for (mi, desc) in descs.into_iter().enumerate() {

@@ -282,6 +282,18 @@ impl Solver {
                 });
             }
         }
+        if let Some(binding) = &desc.binding {
+            for (v, influences) in binding.influences.iter().enumerate() {
+                if let Some(&(b, _)) = influences.iter().find(|&&(b, _)| b >= self.bones.len()) {
+                    return Err(BuildError::InvalidParameter {
+                        muscle: desc.name.clone(),
+                        parameter: format!("binding.influences[{v}]"),
+                        value: b as f32,
+                        reason: format!("there are only {} bones", self.bones.len()),
+                    });
+                }
+            }
+        }
         let bones = &self.bones;
         let muscle = Muscle::build(desc, self.settings.length_unit, |b| bones[b].transform)?;
         let mut target = TargetSurface::new(

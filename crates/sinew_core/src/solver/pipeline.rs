@@ -215,7 +215,8 @@ pub fn plan_kind(method: SolverMethod) -> Option<(PlanKind, f32)> {
 }
 
 /// Moves every attachment goal of `m` to its bone's pose at the substep's
-/// end (`pose(bone)`; `None`: the world).
+/// end (`pose(bone)`; `None`: the world), and every Bind goal to its
+/// vertex's skinned position for those poses.
 pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> Affine3A) {
     let mut k = 0;
     for (i, a) in m.attachments.iter().enumerate() {
@@ -225,6 +226,9 @@ pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> 
             m.constraints.branch_attach.goal[k] = t.transform_point3(a.internal_local);
             k += 1;
         }
+    }
+    if !m.binding.is_empty() {
+        crate::muscle::update_bind_goals(m, &|bone| pose(Some(bone)));
     }
 }
 

@@ -11,7 +11,9 @@ use glam::Vec3;
 
 /// P1 after one step (goals of Soft/Hard/Sliding filled), predictions
 /// perturbed so that every constraint is violated. The contact band spans
-/// the whole oval, so every vertex slides on the plane.
+/// the whole oval, so every vertex slides on the plane; every surface vertex
+/// is also skin-bound to the scene's bone (Bind, goals where it started the
+/// frame).
 fn violated_p1() -> (Solver, Muscle) {
     let (solver, m, _) = violated_p1_with_workspace();
     (solver, m)
@@ -24,6 +26,22 @@ fn violated_p1_with_workspace() -> (Solver, Muscle, MuscleWorkspace) {
     let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
     solver.step();
     let mut m = solver.muscles()[0].clone();
+    let bone = solver.bones()[0].transform.inverse();
+    m.binding = (0..m.surface_count)
+        .map(|v| crate::muscle::BoundVertex {
+            vertex: crate::constraints::ParticleId::from_index(v),
+            bones: [0; 4],
+            weights: [1.0, 0.0, 0.0, 0.0],
+            local: [
+                bone.transform_point3(m.x[v]),
+                Vec3::ZERO,
+                Vec3::ZERO,
+                Vec3::ZERO,
+            ],
+            strength: 1.0,
+        })
+        .collect();
+    m.constraints.bind = crate::muscle::bind_constraints(&m);
     for (i, p) in m.p.iter_mut().enumerate() {
         let k = i as f32;
         *p += 0.004 * Vec3::new((k * 1.3).sin(), (k * 2.1).cos(), (k * 0.7).sin());
@@ -60,6 +78,7 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
     match kind {
         K::Attach => point(&mut c.attach, keep),
         K::BranchAttach => point(&mut c.branch_attach, keep),
+        K::Bind => point(&mut c.bind, keep),
         K::Hard => point(&mut c.hard, keep),
         K::Soft => point(&mut c.soft, keep),
         K::Branch => dist(&mut c.branch, keep),
@@ -92,6 +111,7 @@ fn value(m: &Muscle, kind: K) -> (f64, f64) {
     match kind {
         K::Attach => (c.attach.value(0, p) as f64, 0.01),
         K::BranchAttach => (c.branch_attach.value(0, p) as f64, 0.01),
+        K::Bind => (c.bind.value(0, p) as f64, 0.01),
         K::Hard => (c.hard.value(0, p) as f64, 0.01),
         K::Soft => (c.soft.value(0, p) as f64, c.soft.rest[0].max(0.01) as f64),
         K::Sliding => {

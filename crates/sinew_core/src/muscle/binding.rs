@@ -1,0 +1,172 @@
+//! Skin binding: a body's surface vertices held, softly, to where
+//! linear-blend skinning puts them — the connection that makes a character's
+//! skin follow its skeleton while the muscles below push it out.
+//!
+//! Each bound vertex has up to [`MAX_BONES`] bones and weights (a glTF
+//! skin's `JOINTS_0`/`WEIGHTS_0`); its goal is `Σ w_k M_k(t) ℓ_k`, with `ℓ_k`
+//! the vertex's rest position in bone `k`'s frame at build time and `M_k(t)`
+//! the bone's pose (the same sum glTF's skinning computes). A
+//! [`ConstraintKind::Bind`](super::ConstraintKind::Bind) constraint pulls
+//! the vertex towards it with compliance
+//! [`Compliances::bind`](super::Compliances::bind) ÷ the vertex's strength.
+
+use super::Muscle;
+use crate::constraints::{ParticleId, PointBatch};
+use crate::error::BuildError;
+use glam::{Affine3A, Vec3};
+
+/// Most bones one vertex is bound to (glTF's four joints per vertex).
+pub const MAX_BONES: usize = 4;
+
+/// How a body's surface is bound to bones, per surface vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SkinBindingDesc {
+    /// Per surface vertex: `(bone index in the solver, weight)` pairs, at
+    /// most [`MAX_BONES`], weights ≥ 0 summing to 1; an empty list leaves
+    /// the vertex unbound.
+    pub influences: Vec<Vec<(usize, f32)>>,
+    /// Per surface vertex, the binding's strength (the weight map: the
+    /// compliance is divided by it; 0 unbinds the vertex). Empty: 1 for
+    /// every vertex. Unitless, ≥ 0.
+    pub strength: Vec<f32>,
+}
+
+/// One bound vertex, resolved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundVertex {
+    /// The surface vertex.
+    pub vertex: ParticleId,
+    /// Bones (unused slots have weight 0).
+    pub bones: [u32; MAX_BONES],
+    /// Weights, summing to 1.
+    pub weights: [f32; MAX_BONES],
+    /// The vertex's rest position in each bone's frame.
+    pub local: [Vec3; MAX_BONES],
+    /// Strength (the compliance is divided by it).
+    pub strength: f32,
+}
+
+impl BoundVertex {
+    /// The skinned goal for bone poses `pose`.
+    #[inline]
+    pub fn goal(&self, pose: &impl Fn(usize) -> Affine3A) -> Vec3 {
+        let mut goal = Vec3::ZERO;
+        for k in 0..MAX_BONES {
+            if self.weights[k] > 0.0 {
+                goal +=
+                    self.weights[k] * pose(self.bones[k] as usize).transform_point3(self.local[k]);
+            }
+        }
+        goal
+    }
+}
+
+impl SkinBindingDesc {
+    /// Checks the desc against a surface of `vertex_count` vertices and
+    /// `bone_count` bones, and resolves it at the rest `positions` with the
+    /// bones at `bone_transform`. `muscle` names it in errors.
+    pub fn resolve(
+        &self,
+        muscle: &str,
+        positions: &[Vec3],
+        bone_count: Option<usize>,
+        bone_transform: &impl Fn(usize) -> Affine3A,
+    ) -> Result<Vec<BoundVertex>, BuildError> {
+        let bad = |parameter: String, value: f32, reason: String| BuildError::InvalidParameter {
+            muscle: muscle.to_string(),
+            parameter,
+            value,
+            reason,
+        };
+        let n = positions.len();
+        if self.influences.len() != n {
+            return Err(bad(
+                "binding.influences".into(),
+                self.influences.len() as f32,
+                format!("one list per surface vertex: the surface has {n}"),
+            ));
+        }
+        if !self.strength.is_empty() && self.strength.len() != n {
+            return Err(bad(
+                "binding.strength".into(),
+                self.strength.len() as f32,
+                format!("empty or one value per surface vertex: the surface has {n}"),
+            ));
+        }
+        let mut bound = Vec::new();
+        for (v, influences) in self.influences.iter().enumerate() {
+            let strength = self.strength.get(v).copied().unwrap_or(1.0);
+            if !(strength.is_finite() && strength >= 0.0) {
+                return Err(bad(
+                    format!("binding.strength[{v}]"),
+                    strength,
+                    "must be finite and ≥ 0".into(),
+                ));
+            }
+            if influences.is_empty() || strength == 0.0 {
+                continue;
+            }
+            if influences.len() > MAX_BONES {
+                return Err(bad(
+                    format!("binding.influences[{v}]"),
+                    influences.len() as f32,
+                    format!("at most {MAX_BONES} bones per vertex"),
+                ));
+            }
+            let sum: f32 = influences.iter().map(|&(_, w)| w).sum();
+            if influences
+                .iter()
+                .any(|&(_, w)| !(w.is_finite() && w >= 0.0))
+                || (sum - 1.0).abs() > 1e-3
+            {
+                return Err(bad(
+                    format!("binding.influences[{v}]"),
+                    sum,
+                    format!("weights {influences:?} must be ≥ 0 and sum to 1"),
+                ));
+            }
+            let mut vertex = BoundVertex {
+                vertex: ParticleId::new(v as u32),
+                bones: [0; MAX_BONES],
+                weights: [0.0; MAX_BONES],
+                local: [Vec3::ZERO; MAX_BONES],
+                strength,
+            };
+            for (k, &(bone, weight)) in influences.iter().enumerate() {
+                if let Some(count) = bone_count.filter(|&c| bone >= c) {
+                    return Err(bad(
+                        format!("binding.influences[{v}][{k}]"),
+                        bone as f32,
+                        format!("there are only {count} bones"),
+                    ));
+                }
+                vertex.bones[k] = bone as u32;
+                vertex.weights[k] = weight / sum;
+                vertex.local[k] = bone_transform(bone)
+                    .inverse()
+                    .transform_point3(positions[v]);
+            }
+            bound.push(vertex);
+        }
+        Ok(bound)
+    }
+}
+
+/// The Bind constraints of `m`: one per bound vertex, towards its skinned
+/// goal (at rest: where it is), compliance ÷ strength.
+pub fn bind_constraints(m: &Muscle) -> PointBatch {
+    let mut batch = PointBatch::default();
+    for b in &m.binding {
+        let i = b.vertex.index();
+        batch.push(b.vertex, m.x[i], 0.0, m.params.compliance.bind / b.strength);
+    }
+    batch
+}
+
+/// Refreshes the Bind goals for bone poses `pose` (before each substep's
+/// projection, with the attachments').
+pub fn update_bind_goals(m: &mut Muscle, pose: &impl Fn(usize) -> Affine3A) {
+    for (goal, b) in m.constraints.bind.goal.iter_mut().zip(&m.binding) {
+        *goal = b.goal(pose);
+    }
+}
