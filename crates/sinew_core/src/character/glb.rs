@@ -4,6 +4,7 @@
 //! bind matrices, and one animation per clip (`LINEAR` rotation samplers).
 //! The output is deterministic: the same character gives the same bytes.
 
+pub use super::glb_read::{GlbCharacter, read};
 use super::{CharacterError, SkinnedCharacter};
 use crate::glb_container::{ARRAY_BUFFER, BinaryBuffer, FLOAT, UNSIGNED_SHORT, assemble, floats};
 use glam::Mat4;

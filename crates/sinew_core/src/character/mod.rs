@@ -2,7 +2,8 @@
 //! linear-blend-skinning weights, with joint animation clips — what a glTF
 //! skinned model holds. [`makehuman`] builds one from the MakeHuman base mesh
 //! and its game-engine rig; [`glb`] writes one as a binary glTF that Bevy,
-//! Blender and other DCCs read.
+//! Blender and other DCCs read, and reads a skinned `.glb` back
+//! ([`glb::read`]).
 //!
 //! Conventions (glTF's): metres, +Y up, the character faces +Z. Joints are
 //! axis-aligned at the bind pose (a joint's frame is a translation of the
@@ -12,6 +13,7 @@
 mod clip;
 mod error;
 pub mod glb;
+mod glb_read;
 pub mod makehuman;
 pub mod primitives;
 
