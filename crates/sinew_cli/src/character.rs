@@ -1,7 +1,11 @@
-//! `import-makehuman`: the MakeHuman base mesh and rig → a skinned `.glb`.
+//! `import-makehuman`: the MakeHuman base mesh and rig → a skinned `.glb`;
+//! `fit`: an anatomy scene fitted to a skinned character.
 
+use sinew_core::character::fit::{AnatomyFit, RigMap, SkinVolume};
 use sinew_core::character::makehuman::{self, MakeHumanOptions};
 use sinew_core::character::{SkinnedCharacter, glb};
+use sinew_core::glam::Vec3;
+use sinew_core::mesh::append_obj;
 use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -53,4 +57,129 @@ fn summary(character: &SkinnedCharacter, out: &Path) -> String {
         hi - lo,
         clips.join(", ")
     )
+}
+
+/// What `sinew fit` asks for.
+#[derive(clap::Args)]
+pub struct FitArgs {
+    /// Skinned character (`.glb`).
+    pub character: PathBuf,
+    /// Anatomy scene (with a skeleton), e.g. `assets/scenes/t7.ron`.
+    pub scene: String,
+    /// Rig map (RON: `RigMap(pairs: [("upperarm_r", "humerus_r"), …])`);
+    /// default: the game-engine (Unreal-style) names onto myo-sim's bodies.
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// Also write the skin, the fitted bones and the fitted muscles to this
+    /// OBJ file (objects `skin`, `bone:NAME`, `muscle:NAME`), to look at
+    /// (`scripts/blender/render_obj.py` draws it).
+    #[arg(long)]
+    pub obj: Option<PathBuf>,
+}
+
+/// Fits the scene's anatomy to the character and reports the segments and
+/// the share of muscle and bone vertices outside the skin.
+pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
+    let read = glb::read(&args.character)?;
+    for line in &read.skipped {
+        eprintln!("note: {}: {line}", args.character.display());
+    }
+    let character = read.character;
+    let (_, solver) = crate::commands::load_solver(&args.scene)?;
+    let rig = solver
+        .skeleton()
+        .ok_or_else(|| format!("{}: the scene has no skeleton to fit", args.scene))?;
+    let map = match &args.map {
+        Some(path) => RigMap::load(path)?,
+        None => RigMap::game_engine(),
+    };
+    let unit = solver.settings.length_unit;
+    let mut rest = Vec::new();
+    rig.pose(&vec![0.0; rig.value_count()], &mut rest);
+    for pose in &mut rest {
+        pose.translation /= unit;
+    }
+    let fit = AnatomyFit::new(&character, rig, &rest, &map)?;
+    println!("segment                      scale   turn (deg)  fitted to");
+    for s in &fit.segments {
+        let (_, angle) = s.similarity.rotation.to_axis_angle();
+        let to = if s.fitted_to_children {
+            "children"
+        } else {
+            "parent (leaf)"
+        };
+        println!(
+            "{:<28} {:>6.3} {:>11.1}  {to}",
+            format!("{} → {}", s.joint, s.body),
+            s.similarity.scale,
+            angle.to_degrees()
+        );
+    }
+    let geometry = fit.geometry(&solver);
+    let skin = SkinVolume::new(&character);
+    let outside = |points: &[Vec3]| points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
+    let mut per_muscle: Vec<(f32, &str, usize, usize)> = geometry
+        .muscles
+        .iter()
+        .zip(solver.muscles())
+        .map(|(points, m)| {
+            let n = outside(points);
+            (
+                n as f32 / points.len().max(1) as f32,
+                m.name.as_str(),
+                n,
+                points.len(),
+            )
+        })
+        .collect();
+    let (muscle_out, muscle_all) = per_muscle
+        .iter()
+        .fold((0, 0), |(o, a), m| (o + m.2, a + m.3));
+    let (bone_out, bone_all) = geometry
+        .bones
+        .iter()
+        .fold((0, 0), |(o, a), (_, p)| (o + outside(p), a + p.len()));
+    let share = |o: usize, a: usize| 100.0 * o as f32 / a.max(1) as f32;
+    println!(
+        "outside the skin: muscle vertices {muscle_out} of {muscle_all} ({:.2} %), bone vertices {bone_out} of {bone_all} ({:.2} %)",
+        share(muscle_out, muscle_all),
+        share(bone_out, bone_all)
+    );
+    per_muscle.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let worst: Vec<String> = per_muscle
+        .iter()
+        .take(8)
+        .filter(|m| m.2 > 0)
+        .map(|m| format!("{} {:.0} %", m.1, 100.0 * m.0))
+        .collect();
+    if !worst.is_empty() {
+        println!("most outside: {}", worst.join(", "));
+    }
+    if let Some(path) = &args.obj {
+        let mut text = String::new();
+        let mut first = 1;
+        let mut object = |name: &str, points: &[Vec3], triangles: &[[u32; 3]]| {
+            text.push_str(&format!("o {name}\n"));
+            append_obj(
+                &mut text,
+                points,
+                triangles.iter().map(|t| t.as_slice()),
+                first,
+                Some(5),
+            );
+            first += points.len();
+        };
+        object("skin", &character.positions, &character.triangles);
+        for (b, points) in &geometry.bones {
+            let bone = &solver.bones()[*b];
+            let triangles = &solver.targets()[bone.target.expect("a bone with a mesh")].triangles;
+            object(&format!("bone:{}", bone.name), points, triangles);
+        }
+        for (points, m) in geometry.muscles.iter().zip(solver.muscles()) {
+            object(&format!("muscle:{}", m.name), points, &m.mesh.triangles);
+        }
+        std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -92,6 +92,9 @@ enum Command {
         #[command(flatten)]
         args: character::MakeHumanArgs,
     },
+    /// Fit an anatomy scene to a skinned character (per-segment similarity
+    /// from matched joint centres) and report how much of it is outside the skin.
+    Fit(character::FitArgs),
     /// Simulate to a frame and draw bones and muscles into a PNG (software
     /// rasteriser: no GPU or window needed).
     Render {
@@ -156,6 +159,7 @@ fn main() -> ExitCode {
         } => render::run(&scene, frame, view, (width, height), !no_bones, &out),
         Command::Check(args) => check::run(&args),
         Command::ImportMakehuman { dir, args } => character::run(&dir, &args),
+        Command::Fit(args) => character::fit(&args),
         Command::ImportMjcf { input, args } => import::run(&input, &args),
         Command::Suite(args) => suite::run(&args),
     };

@@ -12,6 +12,7 @@
 
 mod clip;
 mod error;
+pub mod fit;
 pub mod glb;
 mod glb_read;
 pub mod makehuman;
