@@ -99,7 +99,14 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
     for pose in &mut rest {
         pose.translation /= unit;
     }
-    let fit = AnatomyFit::new(&character, rig, &rest, &map)?;
+    let mut fit = AnatomyFit::new(&character, rig, &rest, &map)?;
+    let skin = SkinVolume::new(&character);
+    for (body, dz) in fit.settle_in_skin(&solver, &skin, &map.free, 0.15) {
+        println!(
+            "{body}: moved {:+.0} mm front to back to sit inside the skin",
+            dz * 1000.0
+        );
+    }
     println!("segment                      scale   turn (deg)  fitted to");
     for s in &fit.segments {
         let (_, angle) = s.similarity.rotation.to_axis_angle();
@@ -116,7 +123,6 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         );
     }
     let geometry = fit.geometry(&solver);
-    let skin = SkinVolume::new(&character);
     let outside = |points: &[Vec3]| points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
     let mut per_muscle: Vec<(f32, &str, usize, usize)> = geometry
         .muscles
@@ -145,15 +151,26 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         share(muscle_out, muscle_all),
         share(bone_out, bone_all)
     );
-    per_muscle.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let worst: Vec<String> = per_muscle
+    let mut per_bone: Vec<(f32, &str, usize, usize)> = geometry
+        .bones
         .iter()
-        .take(8)
-        .filter(|m| m.2 > 0)
-        .map(|m| format!("{} {:.0} %", m.1, 100.0 * m.0))
+        .map(|(b, points)| {
+            let n = outside(points);
+            let share = n as f32 / points.len().max(1) as f32;
+            (share, solver.bones()[*b].name.as_str(), n, points.len())
+        })
         .collect();
-    if !worst.is_empty() {
-        println!("most outside: {}", worst.join(", "));
+    for (what, list) in [("muscles", &mut per_muscle), ("bones", &mut per_bone)] {
+        list.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let worst: Vec<String> = list
+            .iter()
+            .take(8)
+            .filter(|m| m.2 > 0)
+            .map(|m| format!("{} {:.0} %", m.1, 100.0 * m.0))
+            .collect();
+        if !worst.is_empty() {
+            println!("{what} most outside: {}", worst.join(", "));
+        }
     }
     if let Some(path) = &args.obj {
         let mut text = String::new();

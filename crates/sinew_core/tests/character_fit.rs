@@ -60,24 +60,33 @@ fn limb_joints_land_on_the_characters_and_the_muscles_follow() {
     let upperarm = fit.segments.iter().find(|s| s.body == "humerus_r").unwrap();
     let (_, turn) = upperarm.similarity.rotation.to_axis_angle();
     assert!(turn > 0.5, "the upper arm turned {turn} rad");
-    // Muscles and bones, inside the skin or not (#16 asks ≤ 1 %; this guards
-    // what the per-segment fit reaches today, 25.1 %: muscles following
-    // any nearby segment, e.g. the hanging hand's at the hip, gave 36 %).
-    let geometry = fit.geometry(&solver);
+    // Muscles and bones inside the skin or not (#16 asks ≤ 1 % of muscle
+    // vertices outside). This guards what the fit reaches today: 23.9 % of
+    // muscle vertices and 4.3 % of bone vertices outside (muscles following
+    // any nearby segment, e.g. the hanging hand's at the hip, gave 36 %;
+    // without the fingers mapped and the trunk and head settled, bones 31 %).
+    let mut fit = fit;
     let skin = SkinVolume::new(&character);
-    let (outside, all) = geometry
-        .muscles
-        .iter()
-        .flatten()
-        .fold((0, 0), |(o, a), &p| {
+    let moved = fit.settle_in_skin(&solver, &skin, &RigMap::game_engine().free, 0.15);
+    assert_eq!(moved.len(), 3, "{moved:?}");
+    let geometry = fit.geometry(&solver);
+    let share = |points: &mut dyn Iterator<Item = &sinew_core::glam::Vec3>| {
+        let (outside, all) = points.fold((0, 0), |(o, a), &p| {
             (o + usize::from(skin.outside_by(p) > 0.0), a + 1)
         });
-    let share = outside as f32 / all as f32;
+        outside as f32 / all as f32
+    };
+    let muscles = share(&mut geometry.muscles.iter().flatten());
+    let bones = share(&mut geometry.bones.iter().flat_map(|(_, p)| p));
     eprintln!(
-        "muscle vertices outside the skin: {outside} of {all} ({:.1} %)",
-        100.0 * share
+        "outside the skin: muscle vertices {:.1} %, bone vertices {:.1} %",
+        100.0 * muscles,
+        100.0 * bones
     );
-    assert!(share < 0.30, "{share}");
+    assert!(
+        muscles < 0.26 && bones < 0.06,
+        "muscles {muscles}, bones {bones}"
+    );
 }
 
 #[test]

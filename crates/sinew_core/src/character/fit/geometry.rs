@@ -135,6 +135,79 @@ impl AnatomyFit {
     }
 }
 
+impl AnatomyFit {
+    /// Moves each segment named in `free` (the bodies a rig's joints do not
+    /// place: the pelvis, the chest) along the character's depth axis (Z,
+    /// front to back) to where the fewest of its bones' vertices are outside
+    /// `skin`, searching ±`reach` metres in 5 mm steps (the smallest move
+    /// among equals); the bodies that take its similarity move with it.
+    /// Returns each moved segment's offset (m).
+    pub fn settle_in_skin(
+        &mut self,
+        solver: &Solver,
+        skin: &SkinVolume,
+        free: &[String],
+        reach: f32,
+    ) -> Vec<(String, f32)> {
+        let unit = solver.settings.length_unit;
+        let mut moved = Vec::new();
+        for (k, segment) in self.segments.clone().iter().enumerate() {
+            if !free.contains(&segment.body) {
+                continue;
+            }
+            // Its bones' vertices, where the fit puts them now.
+            let points: Vec<Vec3> = solver
+                .bones()
+                .iter()
+                .filter(|bone| bone.body.and_then(|b| self.segment_of[b]) == Some(k))
+                .filter_map(|bone| {
+                    let target = &solver.targets()[bone.target?];
+                    let fit = self.bodies[bone.body?];
+                    Some(
+                        target
+                            .positions
+                            .iter()
+                            .step_by(4)
+                            .map(move |&p| fit.apply(bone.transform.transform_point3(p) / unit))
+                            .collect::<Vec<_>>(),
+                    )
+                })
+                .flatten()
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            let steps = (reach / 0.005).round() as i32;
+            let outside = |dz: f32| {
+                let shift = Vec3::new(0.0, 0.0, dz);
+                points
+                    .iter()
+                    .filter(|&&p| skin.outside_by(p + shift) > 0.0)
+                    .count()
+            };
+            let best = (-steps..=steps)
+                .map(|s| s as f32 * 0.005)
+                .min_by(|&a, &b| {
+                    outside(a)
+                        .cmp(&outside(b))
+                        .then(a.abs().total_cmp(&b.abs()))
+                })
+                .unwrap_or(0.0);
+            if best != 0.0 {
+                let shift = Vec3::new(0.0, 0.0, best);
+                self.segments[k].similarity.translation += shift;
+                for (b, fit) in self.bodies.iter_mut().enumerate() {
+                    if self.segment_of[b] == Some(k) {
+                        fit.translation += shift;
+                    }
+                }
+            }
+            moved.push((segment.body.clone(), best));
+        }
+        moved
+    }
+}
+
 /// The volume inside a character's skin at its bind pose, for inside and
 /// outside tests (the side of the closest skin point's normal; holes such
 /// as the eyes' and mouth's are tolerated).

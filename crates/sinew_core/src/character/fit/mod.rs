@@ -39,10 +39,13 @@ impl RigMap {
     /// game-engine rig, Mixamo-like rigs renamed to it — onto the myo-sim
     /// bodies of sinew's anatomy scenes (T7).
     pub fn game_engine() -> Self {
-        // A game rig's spine joints run through the middle of the trunk,
-        // the vertebrae behind it: the pelvis is fitted to the hips and the
-        // chest (`spine_03`) to the thorax as a whole (clavicles and head),
-        // their own origins free; the lumbar vertebrae go with the chest.
+        // A game rig's spine, neck and head joints run through the middle of
+        // the trunk and neck, the vertebrae behind them: the pelvis is fitted
+        // to the hips and the chest (`spine_03`) to the thorax as a whole
+        // (clavicles and head), their own origins free, and these and the
+        // head are settled in the skin front to back
+        // ([`AnatomyFit::settle_in_skin`]); the lumbar vertebrae go with the
+        // chest.
         let mut pairs = vec![
             ("pelvis", "pelvis"),
             ("spine_03", "torso"),
@@ -57,6 +60,21 @@ impl RigMap {
             ("upperarm", "humerus"),
             ("lowerarm", "ulna"),
             ("hand", "lunate"),
+            ("thumb_01", "firstmc"),
+            ("thumb_02", "proximal_thumb"),
+            ("thumb_03", "distal_thumb"),
+            ("index_01", "2proxph"),
+            ("index_02", "midph2"),
+            ("index_03", "distph2"),
+            ("middle_01", "3proxph"),
+            ("middle_02", "midph3"),
+            ("middle_03", "distph3"),
+            ("ring_01", "4proxph"),
+            ("ring_02", "midph4"),
+            ("ring_03", "distph4"),
+            ("pinky_01", "5proxph"),
+            ("pinky_02", "midph5"),
+            ("pinky_03", "distph5"),
         ];
         let mut owned: Vec<(String, String)> =
             pairs.drain(..).map(|(j, b)| (j.into(), b.into())).collect();
@@ -67,7 +85,7 @@ impl RigMap {
         }
         Self {
             pairs: owned,
-            free: vec!["pelvis".into(), "torso".into()],
+            free: vec!["pelvis".into(), "torso".into(), "head".into()],
         }
     }
 
@@ -148,8 +166,8 @@ impl AnatomyFit {
     /// origin on its joint and turns and scales the segment to its nearest
     /// mapped descendants (their centroid); a mapped leaf keeps its parent
     /// segment's rotation and scale; an unmapped body takes its nearest
-    /// mapped ancestor's similarity, or a mapped descendant's when it has no
-    /// mapped ancestor. Errors name a joint the character lacks or a body
+    /// mapped ancestor's similarity, or, with no mapped ancestor, that of the
+    /// mapped body whose origin is nearest to its own. Errors name a joint the character lacks or a body
     /// the anatomy lacks.
     pub fn new(
         character: &SkinnedCharacter,
@@ -191,20 +209,19 @@ impl AnatomyFit {
             }
             None
         };
-        // The character's size relative to the anatomy's: the RMS spread of
-        // every mapped joint about their centre over the bodies'.
+        // The character's size relative to the anatomy's: the height (Y
+        // extent) of the mapped joints over that of the bodies' origins —
+        // heights do not change between an A-pose and arms hanging.
         let overall = {
-            let (from, to): (Vec<Vec3>, Vec<Vec3>) = pairs
-                .iter()
-                .map(|&(j, b)| (origin(b), character.joints[j].origin))
-                .unzip();
-            let n = from.len().max(1) as f32;
-            let (a_mean, c_mean) = (from.iter().sum::<Vec3>() / n, to.iter().sum::<Vec3>() / n);
-            let spread = |points: &[Vec3], mean: Vec3| -> f32 {
-                points.iter().map(|p| (*p - mean).length_squared()).sum()
+            let extent = |ys: &mut dyn Iterator<Item = f32>| {
+                let (lo, hi) = ys.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), y| {
+                    (lo.min(y), hi.max(y))
+                });
+                hi - lo
             };
-            let (a, c) = (spread(&from, a_mean), spread(&to, c_mean));
-            if a > 0.0 { (c / a).sqrt() } else { 1.0 }
+            let anatomy = extent(&mut pairs.iter().map(|&(_, b)| origin(b).y));
+            let body = extent(&mut pairs.iter().map(|&(j, _)| character.joints[j].origin.y));
+            if anatomy > 0.0 { body / anatomy } else { 1.0 }
         };
         let mut fits: Vec<Option<Similarity>> = vec![None; rig.body_count()];
         let mut segments = Vec::with_capacity(pairs.len());
@@ -288,15 +305,21 @@ impl AnatomyFit {
             .filter_map(|(joint, _)| segments.iter().find(|(_, s)| &s.joint == joint))
             .map(|(_, s)| s.clone())
             .collect();
+        // A body with no mapped ancestor (the trunk's roots beside the
+        // pelvis) goes with the mapped body whose origin is nearest to its own.
+        let nearest_mapped = |b: usize| {
+            (0..rig.body_count())
+                .filter(|&d| mapped[d].is_some())
+                .min_by(|&x, &y| {
+                    let distance = |d: usize| origin(d).distance(origin(b));
+                    distance(x).total_cmp(&distance(y))
+                })
+        };
         let mut bodies = Vec::with_capacity(rig.body_count());
         for b in 0..rig.body_count() {
             let own = fits[b]
                 .or_else(|| mapped_ancestor(b).and_then(|p| fits[p]))
-                .or_else(|| {
-                    (b..rig.body_count())
-                        .find(|&d| fits[d].is_some() && descends(rig, d, b))
-                        .and_then(|d| fits[d])
-                });
+                .or_else(|| nearest_mapped(b).and_then(|d| fits[d]));
             bodies.push(
                 own.or(fits.iter().flatten().next().copied())
                     .unwrap_or(Similarity::IDENTITY),
@@ -312,11 +335,9 @@ impl AnatomyFit {
                 if mapped[b].is_some() {
                     return segment_index(b);
                 }
-                mapped_ancestor(b).and_then(segment_index).or_else(|| {
-                    (b..rig.body_count())
-                        .find(|&d| mapped[d].is_some() && descends(rig, d, b))
-                        .and_then(segment_index)
-                })
+                mapped_ancestor(b)
+                    .or_else(|| nearest_mapped(b))
+                    .and_then(segment_index)
             })
             .collect();
         Ok(Self {
@@ -326,16 +347,4 @@ impl AnatomyFit {
             segment_of,
         })
     }
-}
-
-/// Whether body `d` is `ancestor` or below it.
-fn descends(rig: &SkeletonRig, d: usize, ancestor: usize) -> bool {
-    let mut at = Some(d);
-    while let Some(b) = at {
-        if b == ancestor {
-            return true;
-        }
-        at = rig.parent(b);
-    }
-    false
 }
