@@ -45,7 +45,7 @@ fn limb_joints_land_on_the_characters_and_the_muscles_follow() {
         let c = rig.body_index(child_body).unwrap();
         let j = character.joint(joint).unwrap();
         let k = character.joint(child_joint).unwrap();
-        let at = |body: usize| fit.bodies[b].apply(rest[body].translation.into());
+        let at = |body: usize| fit.body(b).apply(rest[body].translation.into());
         let (start, end) = (at(b), at(c));
         assert!(
             start.distance(character.joints[j].origin) < 1e-5,

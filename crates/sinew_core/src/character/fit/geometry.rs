@@ -23,31 +23,8 @@ impl AnatomyFit {
     /// along the bones they lie on across bent joints.
     pub fn geometry(&self, solver: &Solver) -> FittedGeometry {
         let unit = solver.settings.length_unit;
-        let bones = solver
-            .bones()
-            .iter()
-            .filter_map(|bone| {
-                let target = &solver.targets()[bone.target?];
-                let fit = bone
-                    .body
-                    .and_then(|body| self.bodies.get(body))
-                    .copied()
-                    .unwrap_or(Similarity::IDENTITY);
-                let world = target
-                    .positions
-                    .iter()
-                    .map(|&p| fit.apply(bone.transform.transform_point3(p) / unit))
-                    .collect();
-                Some(world)
-            })
-            .zip(
-                solver
-                    .bones()
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, b)| b.target.is_some()),
-            )
-            .map(|(world, (b, _))| (b, world))
+        let bones = (0..solver.bones().len())
+            .filter_map(|b| Some((b, self.bone_points(solver, b)?.collect())))
             .collect();
         let muscles = solver
             .muscles()
@@ -66,6 +43,25 @@ impl AnatomyFit {
             })
             .collect();
         FittedGeometry { bones, muscles }
+    }
+
+    /// Bone `bone`'s mesh vertices where the fit puts them (its body's
+    /// similarity; metres), `None` for a bone without a mesh.
+    fn bone_points<'a>(
+        &self,
+        solver: &'a Solver,
+        bone: usize,
+    ) -> Option<impl Iterator<Item = Vec3> + 'a> {
+        let bone = &solver.bones()[bone];
+        let target = &solver.targets()[bone.target?];
+        let fit = bone.body.map_or(Similarity::IDENTITY, |b| self.body(b));
+        let (pose, unit) = (bone.transform, solver.settings.length_unit);
+        Some(
+            target
+                .positions
+                .iter()
+                .map(move |&p| fit.apply(pose.transform_point3(p) / unit)),
+        )
     }
 }
 
@@ -149,30 +145,21 @@ impl AnatomyFit {
         free: &[String],
         reach: f32,
     ) -> Vec<(String, f32)> {
-        let unit = solver.settings.length_unit;
         let mut moved = Vec::new();
-        for (k, segment) in self.segments.clone().iter().enumerate() {
-            if !free.contains(&segment.body) {
+        for k in 0..self.segments.len() {
+            if !free.contains(&self.segments[k].body) {
                 continue;
             }
-            // Its bones' vertices, where the fit puts them now.
-            let points: Vec<Vec3> = solver
-                .bones()
-                .iter()
-                .filter(|bone| bone.body.and_then(|b| self.segment_of[b]) == Some(k))
-                .filter_map(|bone| {
-                    let target = &solver.targets()[bone.target?];
-                    let fit = self.bodies[bone.body?];
-                    Some(
-                        target
-                            .positions
-                            .iter()
-                            .step_by(4)
-                            .map(move |&p| fit.apply(bone.transform.transform_point3(p) / unit))
-                            .collect::<Vec<_>>(),
-                    )
+            // Its bones' vertices (every fourth), where the fit puts them now.
+            let points: Vec<Vec3> = (0..solver.bones().len())
+                .filter(|&b| {
+                    solver.bones()[b]
+                        .body
+                        .and_then(|body| self.segment_of[body])
+                        == Some(k)
                 })
-                .flatten()
+                .filter_map(|b| self.bone_points(solver, b))
+                .flat_map(|points| points.step_by(4))
                 .collect();
             if points.is_empty() {
                 continue;
@@ -185,24 +172,15 @@ impl AnatomyFit {
                     .filter(|&&p| skin.outside_by(p + shift) > 0.0)
                     .count()
             };
+            // Each offset's count once; the fewest outside, then the smallest move.
             let best = (-steps..=steps)
                 .map(|s| s as f32 * 0.005)
-                .min_by(|&a, &b| {
-                    outside(a)
-                        .cmp(&outside(b))
-                        .then(a.abs().total_cmp(&b.abs()))
-                })
-                .unwrap_or(0.0);
-            if best != 0.0 {
-                let shift = Vec3::new(0.0, 0.0, best);
-                self.segments[k].similarity.translation += shift;
-                for (b, fit) in self.bodies.iter_mut().enumerate() {
-                    if self.segment_of[b] == Some(k) {
-                        fit.translation += shift;
-                    }
-                }
-            }
-            moved.push((segment.body.clone(), best));
+                .map(|dz| (outside(dz), dz))
+                .min_by(|a, b| a.0.cmp(&b.0).then(a.1.abs().total_cmp(&b.1.abs())))
+                .map_or(0.0, |(_, dz)| dz);
+            // Every body of the segment takes its similarity (`body`).
+            self.segments[k].similarity.translation += Vec3::new(0.0, 0.0, best);
+            moved.push((self.segments[k].body.clone(), best));
         }
         moved
     }

@@ -146,11 +146,9 @@ pub struct SegmentFit {
     pub line: (Vec3, Vec3),
 }
 
-/// A similarity for every body of an anatomy.
+/// A similarity for every body of an anatomy ([`AnatomyFit::body`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct AnatomyFit {
-    /// Per rig body (in the rig's order).
-    pub bodies: Vec<Similarity>,
     /// The mapped segments, in the map's order.
     pub segments: Vec<SegmentFit>,
     /// Per rig body, its parent.
@@ -161,6 +159,17 @@ pub struct AnatomyFit {
 }
 
 impl AnatomyFit {
+    /// The similarity of rig body `b`: its segment's (its own when mapped,
+    /// else its nearest mapped ancestor's, else the nearest mapped body's);
+    /// the identity when nothing is mapped.
+    pub fn body(&self, b: usize) -> Similarity {
+        self.segment_of
+            .get(b)
+            .copied()
+            .flatten()
+            .map_or(Similarity::IDENTITY, |k| self.segments[k].similarity)
+    }
+
     /// Fits `rig` (its bodies' world frames at rest: `rest`) to
     /// `character` through `map`. A mapped body's similarity puts its
     /// origin on its joint and turns and scales the segment to its nearest
@@ -315,16 +324,6 @@ impl AnatomyFit {
                     distance(x).total_cmp(&distance(y))
                 })
         };
-        let mut bodies = Vec::with_capacity(rig.body_count());
-        for b in 0..rig.body_count() {
-            let own = fits[b]
-                .or_else(|| mapped_ancestor(b).and_then(|p| fits[p]))
-                .or_else(|| nearest_mapped(b).and_then(|d| fits[d]));
-            bodies.push(
-                own.or(fits.iter().flatten().next().copied())
-                    .unwrap_or(Similarity::IDENTITY),
-            );
-        }
         let parents: Vec<Option<usize>> = (0..rig.body_count()).map(|b| rig.parent(b)).collect();
         let segment_index = |b: usize| {
             let body = &rig.body_names()[b];
@@ -341,7 +340,6 @@ impl AnatomyFit {
             })
             .collect();
         Ok(Self {
-            bodies,
             segments,
             parents,
             segment_of,
