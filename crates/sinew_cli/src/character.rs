@@ -5,7 +5,7 @@ use sinew_core::character::fit::{AnatomyFit, RigMap, SkinVolume};
 use sinew_core::character::makehuman::{self, MakeHumanOptions};
 use sinew_core::character::{SkinnedCharacter, glb};
 use sinew_core::glam::Vec3;
-use sinew_core::mesh::append_obj;
+use sinew_core::mesh::ObjObjects;
 use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -173,18 +173,14 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         }
     }
     if let Some(path) = &args.obj {
-        let mut text = String::new();
-        let mut first = 1;
+        let mut obj = ObjObjects::default();
         let mut object = |name: &str, points: &[Vec3], triangles: &[[u32; 3]]| {
-            text.push_str(&format!("o {name}\n"));
-            append_obj(
-                &mut text,
+            obj.push(
+                name,
                 points,
                 triangles.iter().map(|t| t.as_slice()),
-                first,
                 Some(5),
             );
-            first += points.len();
         };
         object("skin", &character.positions, &character.triangles);
         for (b, points) in &geometry.bones {
@@ -195,7 +191,7 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         for (points, m) in geometry.muscles.iter().zip(solver.muscles()) {
             object(&format!("muscle:{}", m.name), points, &m.mesh.triangles);
         }
-        std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        std::fs::write(path, obj.into_text()).map_err(|e| format!("{}: {e}", path.display()))?;
         println!("wrote {}", path.display());
     }
     Ok(ExitCode::SUCCESS)

@@ -24,7 +24,7 @@
 pub mod pc2;
 mod scene_glb;
 
-use crate::mesh::append_obj;
+use crate::mesh::ObjObjects;
 use crate::solver::Solver;
 use glam::{Affine3A, Vec3};
 use pc2::Pc2Writer;
@@ -253,20 +253,11 @@ impl Bake {
 
 /// Writes every muscle's surface to one OBJ file (one object per muscle).
 pub fn write_obj(solver: &Solver, path: &Path) -> Result<(), BakeError> {
-    let mut text = String::new();
-    let mut first_index = 1usize;
+    let mut obj = ObjObjects::default();
     for m in solver.muscles() {
-        text.push_str(&format!("o {}\n", m.name));
-        append_obj(
-            &mut text,
-            m.surface_positions(),
-            m.mesh.polygons(),
-            first_index,
-            None,
-        );
-        first_index += m.surface_count;
+        obj.push(&m.name, m.surface_positions(), m.mesh.polygons(), None);
     }
-    std::fs::write(path, text).map_err(|source| BakeError::Io {
+    std::fs::write(path, obj.into_text()).map_err(|source| BakeError::Io {
         file: path.to_path_buf(),
         source,
     })

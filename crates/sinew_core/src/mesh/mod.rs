@@ -292,6 +292,44 @@ pub fn append_obj<'a>(
     }
 }
 
+/// Wavefront OBJ text of named objects (`o NAME`), each one's faces
+/// indexing its own vertices (the file's indices run on from object to
+/// object).
+#[derive(Clone, Debug, Default)]
+pub struct ObjObjects {
+    text: String,
+    vertices: usize,
+}
+
+impl ObjObjects {
+    /// Appends object `name`: `positions` and `polygons` (indices into
+    /// `positions`), coordinates written as [`append_obj`] writes them.
+    pub fn push<'a>(
+        &mut self,
+        name: &str,
+        positions: &[Vec3],
+        polygons: impl IntoIterator<Item = &'a [u32]>,
+        decimals: Option<usize>,
+    ) {
+        self.text.push_str("o ");
+        self.text.push_str(name);
+        self.text.push('\n');
+        append_obj(
+            &mut self.text,
+            positions,
+            polygons,
+            self.vertices + 1,
+            decimals,
+        );
+        self.vertices += positions.len();
+    }
+
+    /// The OBJ text.
+    pub fn into_text(self) -> String {
+        self.text
+    }
+}
+
 /// Polygons of `positions` at or below this area count as degenerate: a
 /// tiny fraction of the squared bounding-box diagonal.
 pub(crate) fn min_polygon_area(positions: &[Vec3]) -> f32 {

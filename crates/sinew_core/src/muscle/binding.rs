@@ -62,14 +62,15 @@ impl BoundVertex {
 }
 
 impl SkinBindingDesc {
-    /// Checks the desc against a surface of `vertex_count` vertices and
-    /// `bone_count` bones, and resolves it at the rest `positions` with the
-    /// bones at `bone_transform`. `muscle` names it in errors.
+    /// Checks the desc against a surface at the rest `positions` (one list
+    /// and strength per vertex, weights ≥ 0 summing to 1, strengths finite
+    /// and ≥ 0) and resolves it with the bones at `bone_transform`, which
+    /// must know every bone named (the solver checks them first, beside the
+    /// attachments' bones). `muscle` names it in errors.
     pub fn resolve(
         &self,
         muscle: &str,
         positions: &[Vec3],
-        bone_count: Option<usize>,
         bone_transform: &impl Fn(usize) -> Affine3A,
     ) -> Result<Vec<BoundVertex>, BuildError> {
         let bad = |parameter: String, value: f32, reason: String| BuildError::InvalidParameter {
@@ -133,13 +134,6 @@ impl SkinBindingDesc {
                 strength,
             };
             for (k, &(bone, weight)) in influences.iter().enumerate() {
-                if let Some(count) = bone_count.filter(|&c| bone >= c) {
-                    return Err(bad(
-                        format!("binding.influences[{v}][{k}]"),
-                        bone as f32,
-                        format!("there are only {count} bones"),
-                    ));
-                }
                 vertex.bones[k] = bone as u32;
                 vertex.weights[k] = weight / sum;
                 vertex.local[k] = bone_transform(bone)

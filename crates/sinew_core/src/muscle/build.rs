@@ -129,7 +129,7 @@ impl Muscle {
         let mut rest = mesh.positions.clone();
         rest.extend_from_slice(&structure.points);
         let binding = match &binding {
-            Some(desc) => desc.resolve(&name, &mesh.positions, None, &bone_transform)?,
+            Some(desc) => desc.resolve(&name, &mesh.positions, &bone_transform)?,
             None => Vec::new(),
         };
         let w = mass::inverse_masses(&mesh, &structure, &params, &maps, length_unit);

@@ -227,9 +227,7 @@ pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> 
             k += 1;
         }
     }
-    if !m.binding.is_empty() {
-        crate::muscle::update_bind_goals(m, &|bone| pose(Some(bone)));
-    }
+    crate::muscle::update_bind_goals(m, &|bone| pose(Some(bone)));
 }
 
 /// Explicit Euler prediction with gravity and damping: over a substep of
