@@ -1,9 +1,10 @@
 //! `import-makehuman`: the MakeHuman base mesh and rig → a skinned `.glb`;
 //! `fit`: an anatomy scene fitted to a skinned character.
 
-use sinew_core::character::fit::{AnatomyFit, RigMap, SkinVolume};
+use sinew_core::Solver;
+use sinew_core::character::fit::{AnatomyFit, FittedGeometry, PullInside, RigMap, SkinVolume};
 use sinew_core::character::makehuman::{self, MakeHumanOptions};
-use sinew_core::character::{SkinnedCharacter, glb};
+use sinew_core::character::{ClipPlayback, SkinnedCharacter, glb};
 use sinew_core::glam::Vec3;
 use sinew_core::mesh::ObjObjects;
 use std::error::Error;
@@ -34,6 +35,68 @@ pub fn run(dir: &Path, args: &MakeHumanArgs) -> Result<ExitCode, Box<dyn Error>>
     glb::write(&character, &args.out)?;
     println!("{}", summary(&character, &args.out));
     Ok(ExitCode::SUCCESS)
+}
+
+/// Writes the fitted scene, builds it back and reports its muscle vertices
+/// outside the skin at its first frame (the bind pose).
+fn write_scene(
+    args: &FitArgs,
+    out: &Path,
+    fit: &AnatomyFit,
+    solver: &Solver,
+    geometry: &FittedGeometry,
+    character: &SkinnedCharacter,
+    skin: &SkinVolume,
+) -> Result<(), Box<dyn Error>> {
+    let clip = match &args.clip {
+        Some(name) => Some(
+            character
+                .clips
+                .iter()
+                .find(|c| &c.name == name)
+                .ok_or_else(|| {
+                    let names: Vec<&str> =
+                        character.clips.iter().map(|c| c.name.as_str()).collect();
+                    format!(
+                        "{}: no clip '{name}' (it has: {})",
+                        args.character.display(),
+                        names.join(", ")
+                    )
+                })?,
+        ),
+        None => character
+            .clips
+            .iter()
+            .find(|c| c.name == "walk")
+            .or(character.clips.first()),
+    };
+    let playback = ClipPlayback {
+        lead_in: args.lead_in,
+        until: args.seconds,
+    };
+    let (anatomy, _) = crate::commands::load_scene(&args.scene)?;
+    let fitted = fit.scene(&anatomy, solver, geometry, character, clip, &playback)?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+    }
+    fitted.save(out)?;
+    let built = fitted
+        .scene
+        .instantiate(out.parent().unwrap_or(Path::new("")))?;
+    let (outside, all) = built.muscles().iter().fold((0, 0), |(o, a), m| {
+        let points = m.surface_positions();
+        let n = points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
+        (o + n, a + points.len())
+    });
+    println!(
+        "wrote {} ({} meshes, {} frames, clip {}); built back: muscle vertices outside the skin at rest {outside} of {all} ({:.2} %)",
+        out.display(),
+        fitted.meshes.len(),
+        fitted.scene.frames,
+        clip.map_or("none", |c| c.name.as_str()),
+        100.0 * outside as f32 / all.max(1) as f32
+    );
+    Ok(())
 }
 
 fn summary(character: &SkinnedCharacter, out: &Path) -> String {
@@ -75,6 +138,25 @@ pub struct FitArgs {
     /// (`scripts/blender/render_obj.py` draws it).
     #[arg(long)]
     pub obj: Option<PathBuf>,
+    /// Leave the fitted muscles and bones where the segments put them
+    /// (by default what sticks out of the skin is pulled inside it).
+    #[arg(long)]
+    pub no_pull: bool,
+    /// Write the fitted anatomy as a scene here (`.ron`; its meshes go to
+    /// `meshes/` beside it): the character's joints as the skeleton, the
+    /// bones following them, the clip as the motion.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// The character's clip the scene plays (default: `walk` when the
+    /// character has one, else its first, else none).
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// Seconds from the bind pose to the clip's first pose.
+    #[arg(long, default_value_t = 1.0)]
+    pub lead_in: f32,
+    /// Seconds the scene lasts (the clip loops).
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f32,
 }
 
 /// Fits the scene's anatomy to the character and reports the segments and
@@ -122,7 +204,24 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
             angle.to_degrees()
         );
     }
-    let geometry = fit.geometry(&solver);
+    let mut geometry = fit.geometry(&solver);
+    if !args.no_pull {
+        let muscles = PullInside::default();
+        let bones = PullInside {
+            margin: 0.001,
+            ..PullInside::default()
+        };
+        let [m, b] = geometry.pull_inside(&solver, &skin, &muscles, &bones);
+        for (what, r) in [("muscle", m), ("bone", b)] {
+            println!(
+                "pulled inside the skin: {what} vertices outside {} → {}, largest move {:.1} mm, {} triangles folded",
+                r.outside_before,
+                r.outside_after,
+                r.largest_move * 1000.0,
+                r.folded
+            );
+        }
+    }
     let outside = |points: &[Vec3]| points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
     let mut per_muscle: Vec<(f32, &str, usize, usize)> = geometry
         .muscles
@@ -191,8 +290,14 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         for (points, m) in geometry.muscles.iter().zip(solver.muscles()) {
             object(&format!("muscle:{}", m.name), points, &m.mesh.triangles);
         }
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+        }
         std::fs::write(path, obj.into_text()).map_err(|e| format!("{}: {e}", path.display()))?;
         println!("wrote {}", path.display());
+    }
+    if let Some(out) = &args.out {
+        write_scene(args, out, &fit, &solver, &geometry, &character, &skin)?;
     }
     Ok(ExitCode::SUCCESS)
 }

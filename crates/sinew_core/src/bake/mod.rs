@@ -143,7 +143,7 @@ impl Bake {
         let formats: HashSet<BakeFormat> = formats.iter().copied().collect();
         let unit = solver.settings.length_unit;
         let in_metres = |p: &[Vec3]| p.iter().map(|&p| p / unit).collect::<Vec<_>>();
-        let cache_names = file_names(solver.muscles().iter().map(|m| m.name.as_str()));
+        let cache_names = file_names(solver.muscles().iter().map(|m| m.name.as_str()), "pc2");
         let mut caches = Vec::new();
         let mut muscles = Vec::new();
         for (m, cache) in solver.muscles().iter().zip(cache_names) {
@@ -263,10 +263,10 @@ pub fn write_obj(solver: &Solver, path: &Path) -> Result<(), BakeError> {
     })
 }
 
-/// A `.pc2` file name per name: characters other than letters, digits, `-`,
-/// `_` and `.` become `_`, and a name that repeats an earlier one gets `_2`,
-/// `_3`, … so that no two muscles share a cache.
-fn file_names<'a>(names: impl Iterator<Item = &'a str>) -> Vec<String> {
+/// A file name with `extension` per name: characters other than letters,
+/// digits, `-`, `_` and `.` become `_`, and a name that repeats an earlier
+/// one (ignoring case) gets `_2`, `_3`, … so that no two share a file.
+pub(crate) fn file_names<'a>(names: impl Iterator<Item = &'a str>, extension: &str) -> Vec<String> {
     let mut taken = HashSet::new();
     names
         .map(|name| {
@@ -285,10 +285,10 @@ fn file_names<'a>(names: impl Iterator<Item = &'a str>) -> Vec<String> {
             } else {
                 clean
             };
-            let mut file = format!("{clean}.pc2");
+            let mut file = format!("{clean}.{extension}");
             let mut k = 2;
             while !taken.insert(file.to_ascii_lowercase()) {
-                file = format!("{clean}_{k}.pc2");
+                file = format!("{clean}_{k}.{extension}");
                 k += 1;
             }
             file
@@ -302,7 +302,7 @@ mod tests {
 
     #[test]
     fn cache_names_are_safe_and_distinct() {
-        let names = file_names(["BIClong", "a/b", "a:b", "", "biclong"].into_iter());
+        let names = file_names(["BIClong", "a/b", "a:b", "", "biclong"].into_iter(), "pc2");
         assert_eq!(
             names,
             [

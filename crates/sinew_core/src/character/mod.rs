@@ -13,13 +13,17 @@
 mod clip;
 mod error;
 pub mod fit;
+mod gait;
 pub mod glb;
 mod glb_read;
 pub mod makehuman;
 pub mod primitives;
+mod skeleton;
 
 pub use clip::{JointClip, RotationChannel};
 pub use error::CharacterError;
+pub use gait::WalkCycle;
+pub use skeleton::ClipPlayback;
 
 use glam::{Affine3A, Quat, Vec3};
 

@@ -2,7 +2,7 @@
 
 use super::{AnatomyFit, Similarity};
 use crate::character::SkinnedCharacter;
-use crate::closest::{TargetSource, TargetSurface};
+use crate::closest::{ClosestHit, TargetSource, TargetSurface};
 use crate::solver::Solver;
 use glam::{Affine3A, Vec3};
 
@@ -197,20 +197,35 @@ pub struct SkinVolume {
 impl SkinVolume {
     /// The skin of `character` at its bind pose.
     pub fn new(character: &SkinnedCharacter) -> Self {
-        let mut surface = TargetSurface::new(
+        Self::from_surface(
             format!("{} skin", character.name),
-            TargetSource::Bone(0),
             character.positions.clone(),
             character.triangles.clone(),
-        );
+        )
+    }
+
+    /// The inside of any closed surface (outward-facing triangles): the
+    /// fitted bones, a test shape.
+    pub fn from_surface(
+        name: impl Into<String>,
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+    ) -> Self {
+        let mut surface =
+            TargetSurface::new(name.into(), TargetSource::Bone(0), positions, triangles);
         surface.set_transform(Affine3A::IDENTITY);
         Self { surface }
     }
 
     /// How far `p` is outside the skin (m; ≤ 0 inside).
     pub fn outside_by(&self, p: Vec3) -> f32 {
-        self.surface
-            .closest_within(p, None, f32::MAX)
+        self.closest(p)
             .map_or(f32::INFINITY, |hit| hit.signed_distance)
+    }
+
+    /// The skin point closest to `p`, with its outward normal (`None` for
+    /// a skin without triangles).
+    pub fn closest(&self, p: Vec3) -> Option<ClosestHit> {
+        self.surface.closest_within(p, None, f32::MAX)
     }
 }

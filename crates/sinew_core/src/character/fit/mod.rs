@@ -9,9 +9,13 @@
 //! the imported anatomy's).
 
 mod geometry;
+mod inside;
+mod scene;
 mod similarity;
 
 pub use geometry::{FittedGeometry, SkinVolume};
+pub use inside::{PullInside, PullReport};
+pub use scene::FittedScene;
 pub use similarity::least_squares_similarity;
 
 use super::{CharacterError, SkinnedCharacter};

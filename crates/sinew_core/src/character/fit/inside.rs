@@ -1,0 +1,400 @@
+//! Pulling fitted soft tissue inside the character's skin: a slim
+//! character's limbs are thinner than the anatomy's muscles scaled by bone
+//! length, so the fit shrink-wraps what sticks out.
+
+use super::{FittedGeometry, SkinVolume};
+use crate::solver::Solver;
+use glam::Vec3;
+
+/// How [`SkinVolume::pull_inside`] moves a surface in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PullInside {
+    /// Depth under the skin a pulled vertex goes to (the thinnest fat
+    /// layer). Units: m. Default: 0.003.
+    pub margin: f32,
+    /// Rounds of pull and spread; each round pulls what is still outside.
+    /// Default: 30.
+    pub rounds: u32,
+    /// Smoothing passes spreading a round's pulls to the neighbouring
+    /// vertices (so a muscle is dented smoothly, not creased). Default: 6.
+    pub spread: u32,
+    /// Share of its neighbours' mean pull a vertex takes per spread pass,
+    /// in `[0, 1)`: how far the dent reaches. Default: 0.8.
+    pub falloff: f32,
+    /// Distance a vertex is pushed out of a bone to, when bones are given.
+    /// Units: m. Default: 0.001.
+    pub bone_clearance: f32,
+}
+
+impl Default for PullInside {
+    fn default() -> Self {
+        Self {
+            margin: 0.003,
+            rounds: 30,
+            spread: 6,
+            falloff: 0.8,
+            bone_clearance: 0.001,
+        }
+    }
+}
+
+/// What [`SkinVolume::pull_inside`] did to one surface.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PullReport {
+    /// Vertices outside the skin before.
+    pub outside_before: usize,
+    /// Vertices outside the skin after.
+    pub outside_after: usize,
+    /// Largest distance a vertex moved. Units: m.
+    pub largest_move: f32,
+    /// Triangles whose normal turned by more than 90° (folded).
+    pub folded: usize,
+}
+
+impl PullReport {
+    /// Adds another surface's figures.
+    pub fn add(&mut self, other: &Self) {
+        self.outside_before += other.outside_before;
+        self.outside_after += other.outside_after;
+        self.largest_move = self.largest_move.max(other.largest_move);
+        self.folded += other.folded;
+    }
+}
+
+impl SkinVolume {
+    /// Moves a surface (`points`, connected by `triangles`) inside the
+    /// skin, `options.margin` under it, in three steps: the whole surface
+    /// shifts inwards by its outside vertices' mean pull (keeping its
+    /// shape); then it narrows about its long axis (keeping its length: a
+    /// slim character's muscles are thinner) to the widest cross-section
+    /// that has at most 1 % more of its vertices outside than the narrowest
+    /// tried (half width); then what still sticks out is pulled in along the
+    /// skin's normal, each pull spread over the neighbouring vertices with
+    /// a falloff, in rounds until nothing is outside or the rounds are spent.
+    /// Vertices deep inside and far from any pulled vertex move only with
+    /// the first two steps.
+    ///
+    /// With `bones` (the fitted bones as one volume), vertices inside a bone
+    /// are also pushed out to `options.bone_clearance` above it, where that
+    /// keeps them inside the skin (the skin wins where the two disagree).
+    pub fn pull_inside(
+        &self,
+        points: &mut [Vec3],
+        triangles: &[[u32; 3]],
+        options: &PullInside,
+        bones: Option<&SkinVolume>,
+    ) -> PullReport {
+        let normals_before: Vec<Vec3> = triangles
+            .iter()
+            .map(|t| triangle_normal(points, t))
+            .collect();
+        let start = points.to_vec();
+        let outside =
+            |points: &[Vec3]| points.iter().filter(|&&p| self.outside_by(p) > 0.0).count();
+        let mut report = PullReport {
+            outside_before: outside(points),
+            ..PullReport::default()
+        };
+        if report.outside_before > 0 {
+            self.shift_inside(points, options.margin);
+            self.narrow_inside(points, options.margin);
+            let neighbours = vertex_neighbours(points.len(), triangles);
+            let pull = |p: Vec3| self.pull_of(p, options.margin);
+            if let Some(bones) = bones {
+                // Out of the bones where that stays inside the skin, then
+                // into the skin, a few times over.
+                let push = |p: Vec3| {
+                    let out = bones.push_of(p, options.bone_clearance)?;
+                    (self.outside_by(p + out) < 0.0).then_some(out)
+                };
+                for _ in 0..3 {
+                    spread_moves(points, &neighbours, options, pull);
+                    spread_moves(points, &neighbours, options, push);
+                }
+            }
+            spread_moves(points, &neighbours, options, pull);
+        }
+        report.outside_after = outside(points);
+        report.largest_move = points
+            .iter()
+            .zip(&start)
+            .map(|(p, s)| p.distance(*s))
+            .fold(0.0, f32::max);
+        report.folded = triangles
+            .iter()
+            .zip(&normals_before)
+            .filter(|(t, before)| triangle_normal(points, t).dot(**before) < 0.0)
+            .count();
+        report
+    }
+
+    /// How far in (m) and which way a vertex must go to be `margin` under
+    /// this surface (`None` where it already is).
+    fn pull_of(&self, p: Vec3, margin: f32) -> Option<Vec3> {
+        let hit = self.closest(p)?;
+        let depth = hit.signed_distance + margin;
+        (depth > 0.0).then(|| -depth * hit.normal)
+    }
+
+    /// How far out (m) and which way a vertex inside this surface, or
+    /// closer than `clearance` above it, must go to be `clearance` above it
+    /// (`None` where it already is).
+    fn push_of(&self, p: Vec3, clearance: f32) -> Option<Vec3> {
+        let hit = self.closest(p)?;
+        let short = clearance - hit.signed_distance;
+        (short > 0.0).then(|| short * hit.normal)
+    }
+
+    /// Shifts `points` rigidly by their vertices' mean pull, in rounds,
+    /// while that lowers the number of vertices short of `margin` inside.
+    fn shift_inside(&self, points: &mut [Vec3], margin: f32) {
+        let n = points.len() as f32;
+        let mut short = usize::MAX;
+        for _ in 0..8 {
+            let pulls: Vec<Vec3> = points
+                .iter()
+                .filter_map(|&p| self.pull_of(p, margin))
+                .collect();
+            if pulls.len() >= short || pulls.is_empty() {
+                break;
+            }
+            short = pulls.len();
+            let shift = pulls.iter().sum::<Vec3>() / n;
+            points.iter_mut().for_each(|p| *p += shift);
+        }
+    }
+
+    /// Scales `points` about their long axis (across it only) to the widest
+    /// of 100 %, 95 %, … 50 % that has at most 1 % of the vertices more
+    /// outside (`margin` under the skin) than the narrowest.
+    fn narrow_inside(&self, points: &mut [Vec3], margin: f32) {
+        let Some((centre, direction)) = long_axis(points) else {
+            return;
+        };
+        let scaled = |s: f32| {
+            points.iter().map(move |&p| {
+                let on_axis = centre + (p - centre).dot(direction) * direction;
+                on_axis + s * (p - on_axis)
+            })
+        };
+        let short = |s: f32| {
+            scaled(s)
+                .filter(|&p| self.pull_of(p, margin).is_some())
+                .count()
+        };
+        let widths: Vec<f32> = (0..=10).map(|k| 1.0 - 0.05 * k as f32).collect();
+        let counts: Vec<usize> = widths.iter().map(|&s| short(s)).collect();
+        let fewest = counts.iter().copied().min().unwrap_or(0);
+        let allowed = fewest + points.len().div_ceil(100);
+        let width = widths
+            .iter()
+            .zip(&counts)
+            .find(|&(_, &c)| c <= allowed)
+            .map_or(1.0, |(&s, _)| s);
+        let narrowed: Vec<Vec3> = scaled(width).collect();
+        points.copy_from_slice(&narrowed);
+    }
+}
+
+/// Moves vertices by `move_of` (`None`: stays) in rounds until none moves or
+/// `options.rounds` are spent, each round's moves spread over the
+/// neighbouring vertices with `options.falloff` per pass for
+/// `options.spread` passes; only vertices that moved in a round are asked
+/// again in the next.
+fn spread_moves(
+    points: &mut [Vec3],
+    neighbours: &[Vec<usize>],
+    options: &PullInside,
+    move_of: impl Fn(Vec3) -> Option<Vec3>,
+) {
+    let n = points.len();
+    let mut check: Vec<bool> = vec![true; n];
+    let mut moves = vec![Vec3::ZERO; n];
+    let mut pinned = vec![false; n];
+    for _ in 0..options.rounds {
+        let mut any = false;
+        for v in 0..n {
+            moves[v] = Vec3::ZERO;
+            pinned[v] = false;
+            if check[v]
+                && let Some(m) = move_of(points[v])
+            {
+                moves[v] = m;
+                pinned[v] = true;
+                any = true;
+            }
+        }
+        if !any {
+            break;
+        }
+        let mut next = moves.clone();
+        for _ in 0..options.spread {
+            for v in 0..n {
+                if pinned[v] || neighbours[v].is_empty() {
+                    continue;
+                }
+                let mean = neighbours[v].iter().map(|&u| moves[u]).sum::<Vec3>()
+                    / neighbours[v].len() as f32;
+                next[v] = options.falloff * mean;
+            }
+            std::mem::swap(&mut moves, &mut next);
+        }
+        for v in 0..n {
+            check[v] = moves[v] != Vec3::ZERO;
+            points[v] += moves[v];
+        }
+    }
+}
+
+/// Each vertex's neighbours along the triangles' edges.
+fn vertex_neighbours(n: usize, triangles: &[[u32; 3]]) -> Vec<Vec<usize>> {
+    let mut neighbours = vec![Vec::new(); n];
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            if a < n && b < n {
+                neighbours[a].push(b);
+                neighbours[b].push(a);
+            }
+        }
+    }
+    for list in &mut neighbours {
+        list.sort_unstable();
+        list.dedup();
+    }
+    neighbours
+}
+
+/// The line through the centroid of `points` along their principal
+/// direction (`None` for fewer than two distinct points).
+fn long_axis(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    if points.len() < 2 {
+        return None;
+    }
+    let centre = points.iter().sum::<Vec3>() / points.len() as f32;
+    let mut covariance = glam::Mat3::ZERO;
+    for &p in points {
+        let d = p - centre;
+        covariance += glam::Mat3::from_cols(d * d.x, d * d.y, d * d.z);
+    }
+    // Power iteration from the direction of the farthest point.
+    let far = points
+        .iter()
+        .map(|&p| p - centre)
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
+    let mut direction = far.try_normalize()?;
+    for _ in 0..32 {
+        direction = (covariance * direction).try_normalize()?;
+    }
+    Some((centre, direction))
+}
+
+fn triangle_normal(points: &[Vec3], t: &[u32; 3]) -> Vec3 {
+    let [a, b, c] = t.map(|i| points.get(i as usize).copied().unwrap_or_default());
+    (b - a).cross(c - a)
+}
+
+impl FittedGeometry {
+    /// Pulls the fitted bones (`bones`' options) and then the muscles
+    /// (`muscles`', kept out of the pulled bones) inside `skin`
+    /// ([`SkinVolume::pull_inside`]); `solver` is the one the geometry came
+    /// from (its surfaces' triangles). Returns what it did to the muscles
+    /// and to the bones.
+    pub fn pull_inside(
+        &mut self,
+        solver: &Solver,
+        skin: &SkinVolume,
+        muscles: &PullInside,
+        bones: &PullInside,
+    ) -> [PullReport; 2] {
+        let mut report = [PullReport::default(); 2];
+        let (mut all_points, mut all_triangles) = (Vec::new(), Vec::new());
+        for (b, points) in &mut self.bones {
+            let Some(target) = solver.bones()[*b].target else {
+                continue;
+            };
+            let triangles = &solver.targets()[target].triangles;
+            report[1].add(&skin.pull_inside(points, triangles, bones, None));
+            let offset = all_points.len() as u32;
+            all_triangles.extend(triangles.iter().map(|t| t.map(|i| i + offset)));
+            all_points.extend_from_slice(points);
+        }
+        let bone_volume = SkinVolume::from_surface("fitted bones", all_points, all_triangles);
+        for (points, m) in self.muscles.iter_mut().zip(solver.muscles()) {
+            let triangles = &m.mesh.triangles;
+            report[0].add(&skin.pull_inside(points, triangles, muscles, Some(&bone_volume)));
+        }
+        report
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::primitives::MeshGenerator;
+
+    fn ellipsoid(center: Vec3, radii: Vec3, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let mesh = MeshGenerator::Ellipsoid {
+            center,
+            radii,
+            segments,
+            stacks: segments,
+        }
+        .build("test")
+        .unwrap();
+        (mesh.positions.clone(), mesh.triangles.clone())
+    }
+
+    /// A "limb": a long ellipsoid skin of radius 4 cm; a "muscle" 2.5 cm
+    /// thick lying 2.5 cm off its axis sticks out of it.
+    fn limb_and_muscle() -> (SkinVolume, Vec<Vec3>, Vec<[u32; 3]>) {
+        let (skin, skin_triangles) = ellipsoid(Vec3::ZERO, Vec3::new(0.4, 0.04, 0.04), 32);
+        let skin = SkinVolume::from_surface("limb", skin, skin_triangles);
+        let (muscle, triangles) = ellipsoid(
+            Vec3::new(0.0, 0.025, 0.0),
+            Vec3::new(0.15, 0.025, 0.025),
+            12,
+        );
+        (skin, muscle, triangles)
+    }
+
+    #[test]
+    fn a_muscle_sticking_out_is_pulled_in_without_folding() {
+        let (skin, mut muscle, triangles) = limb_and_muscle();
+        let report = skin.pull_inside(&mut muscle, &triangles, &PullInside::default(), None);
+        assert!(report.outside_before > 20, "{report:?}");
+        assert_eq!(report.outside_after, 0, "{report:?}");
+        assert_eq!(report.folded, 0, "{report:?}");
+        // At least the margin under the skin, up to rounding.
+        let deepest_miss = muscle
+            .iter()
+            .map(|&p| skin.outside_by(p))
+            .fold(f32::NEG_INFINITY, f32::max);
+        assert!(deepest_miss < -0.002, "{deepest_miss}");
+        // It keeps its length (narrowed across its axis, not squashed).
+        let length = |points: &[Vec3]| {
+            let xs = points.iter().map(|p| p.x);
+            xs.clone().fold(f32::NEG_INFINITY, f32::max) - xs.fold(f32::INFINITY, f32::min)
+        };
+        assert!((length(&muscle) - 0.3).abs() < 0.01, "{}", length(&muscle));
+    }
+
+    #[test]
+    fn what_is_inside_does_not_move_and_bones_push_out() {
+        let (skin, _, _) = limb_and_muscle();
+        let (mut inside, triangles) = ellipsoid(Vec3::ZERO, Vec3::new(0.1, 0.01, 0.01), 10);
+        let before = inside.clone();
+        let report = skin.pull_inside(&mut inside, &triangles, &PullInside::default(), None);
+        assert_eq!(report.outside_before, 0);
+        assert_eq!(inside, before);
+        // A "bone" along the axis: the pulled muscle stays out of it.
+        let (bone, bone_triangles) = ellipsoid(Vec3::ZERO, Vec3::new(0.3, 0.012, 0.012), 16);
+        let bone = SkinVolume::from_surface("bone", bone, bone_triangles);
+        let (skin, mut muscle, triangles) = limb_and_muscle();
+        let options = PullInside::default();
+        skin.pull_inside(&mut muscle, &triangles, &options, Some(&bone));
+        let in_bone = muscle.iter().filter(|&&p| bone.outside_by(p) < 0.0).count();
+        let outside = muscle.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
+        assert_eq!((in_bone, outside), (0, 0));
+    }
+}
