@@ -2,7 +2,9 @@
 //! `fit`: an anatomy scene fitted to a skinned character.
 
 use sinew_core::Solver;
-use sinew_core::character::fit::{AnatomyFit, FittedGeometry, PullInside, RigMap, SkinVolume};
+use sinew_core::character::fit::{
+    AnatomyFit, FittedGeometry, PullInside, RigMap, SkinLayer, SkinVolume,
+};
 use sinew_core::character::makehuman::{self, MakeHumanOptions};
 use sinew_core::character::{ClipPlayback, SkinnedCharacter, glb};
 use sinew_core::glam::Vec3;
@@ -75,7 +77,10 @@ fn write_scene(
         until: args.seconds,
     };
     let (anatomy, _) = crate::commands::load_scene(&args.scene)?;
-    let fitted = fit.scene(&anatomy, solver, geometry, character, clip, &playback)?;
+    let mut fitted = fit.scene(&anatomy, solver, geometry, character, clip, &playback)?;
+    if !args.no_skin {
+        fitted.add_skin(character, &SkinLayer::default());
+    }
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
     }
@@ -83,7 +88,8 @@ fn write_scene(
     let built = fitted
         .scene
         .instantiate(out.parent().unwrap_or(Path::new("")))?;
-    let (outside, all) = built.muscles().iter().fold((0, 0), |(o, a), m| {
+    let anatomy_muscles = built.muscles().iter().filter(|m| m.binding.is_empty());
+    let (outside, all) = anatomy_muscles.fold((0, 0), |(o, a), m| {
         let points = m.surface_positions();
         let n = points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
         (o + n, a + points.len())
@@ -157,6 +163,10 @@ pub struct FitArgs {
     /// Seconds the scene lasts (the clip loops).
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f32,
+    /// Leave the character's skin out of the scene (by default it is a
+    /// simulated layer over the muscles, bound to the joints).
+    #[arg(long)]
+    pub no_skin: bool,
 }
 
 /// Fits the scene's anatomy to the character and reports the segments and

@@ -51,6 +51,14 @@ pub struct Limits {
     /// run counts as at rest (the rest figures are judged only then).
     #[arg(long, default_value_t = 2.0)]
     pub settle: f32,
+    /// Largest share of skin vertices inside a muscle or bone in a checked
+    /// frame, in percent (scenes with a skin).
+    #[arg(long, default_value_t = 0.5)]
+    pub max_skin_inside_pct: f32,
+    /// At rest: largest distance of a skin vertex from its skinned
+    /// position, in millimetres (scenes with a skin).
+    #[arg(long, default_value_t = 2.0)]
+    pub max_skin_bind_mm: f32,
 }
 
 impl From<Limits> for Thresholds {
@@ -65,6 +73,8 @@ impl From<Limits> for Thresholds {
             rest_strain: [l.min_rest_strain, l.max_rest_strain],
             rest_deviation: l.max_rest_deviation_mm * 1e-3,
             settle: l.settle,
+            skin_inside: l.max_skin_inside_pct * 1e-2,
+            skin_bind: l.max_skin_bind_mm * 1e-3,
             ..Self::default()
         }
     }

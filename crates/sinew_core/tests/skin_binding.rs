@@ -310,3 +310,47 @@ fn bad_bindings_are_refused_by_name() {
     let error = add(vec![vec![(0, 1.0)]; n], strength);
     assert!(error.contains("binding.strength[2]"), "{error}");
 }
+
+/// A bound skin with nothing under it to slide on is held by its binding
+/// alone: it sags by its weight (compliance × weight, under a millimetre),
+/// it does not fall (a body without attachments or targets used to count as
+/// free and had its momentum kept, which cancelled the Bind pulls).
+#[test]
+fn a_bound_skin_with_nothing_below_hangs_on_its_binding() {
+    let mut solver = arm(SolverMethod::Sequential, 1);
+    let mesh = MeshGenerator::Ellipsoid {
+        center: Vec3::new(1.0, 0.0, 0.0),
+        radii: Vec3::splat(0.05),
+        segments: 12,
+        stacks: 8,
+    }
+    .build("patch")
+    .unwrap();
+    let n = mesh.vertex_count();
+    let patch = solver
+        .add_muscle(MuscleDesc {
+            name: "patch".into(),
+            mesh,
+            roots: Roots::Vertices(Vec::new()),
+            attachments: Vec::new(),
+            targets: Vec::new(),
+            params: MuscleParams::surface_layer(1.1, 0.01),
+            maps: VertexMaps::default(),
+            binding: Some(SkinBindingDesc {
+                influences: vec![vec![(0, 1.0)]; n],
+                strength: Vec::new(),
+            }),
+        })
+        .unwrap();
+    let start = solver.muscles()[patch].surface_positions().to_vec();
+    for _ in 0..60 {
+        solver.step();
+    }
+    let sag = solver.muscles()[patch]
+        .surface_positions()
+        .iter()
+        .zip(&start)
+        .map(|(p, s)| p.distance(*s))
+        .fold(0.0, f32::max);
+    assert!(sag < 1e-3, "the bound patch moved {sag} m");
+}

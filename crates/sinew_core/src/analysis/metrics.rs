@@ -1,7 +1,7 @@
 //! [`RunMetrics`]: the figures of a run, gathered one frame at a time.
 
 use super::shape::{RestDeviation, ShapeReference};
-use super::{attachment_errors, belly_cross_section, penetrating_vertices};
+use super::{attachment_errors, belly_cross_section, penetrating_vertices, skin_inside_vertices};
 use crate::solver::Solver;
 use glam::{Affine3A, Vec3};
 use std::collections::VecDeque;
@@ -25,6 +25,11 @@ pub struct RunMetrics {
     pub penetration_frame: u32,
     /// Penetration depth counted. Units: m.
     pub depth: f32,
+    /// Largest share of skin vertices (bodies with a skin binding) inside a
+    /// muscle or bone they slide on, in a checked frame (`None`: no skin).
+    pub skin_inside_max: Option<f32>,
+    /// Frame of that share.
+    pub skin_inside_frame: u32,
     /// Per muscle: (min, max) of volume / rest volume.
     pub volume_ratio: Vec<(f64, f64)>,
     /// Per muscle: largest activation seen.
@@ -167,6 +172,8 @@ impl RunMetrics {
             penetration_max: 0.0,
             penetration_frame: 0,
             depth,
+            skin_inside_max: None,
+            skin_inside_frame: 0,
             volume_ratio: vec![(f64::INFINITY, f64::NEG_INFINITY); n],
             activation_max: vec![0.0; n],
             rest_section: (0..n).map(|m| belly_cross_section(solver, m)).collect(),
@@ -234,6 +241,15 @@ impl RunMetrics {
                 .zip(solver.muscles())
             {
                 *worst = worst.max(n as f32 / m.surface_count.max(1) as f32);
+            }
+            let skins = skin_inside_vertices(solver);
+            if !skins.is_empty() {
+                let (inside, all) = skins.iter().fold((0, 0), |(i, a), s| (i + s.1, a + s.2));
+                let share = inside as f32 / all.max(1) as f32;
+                if self.skin_inside_max.is_none_or(|worst| share > worst) {
+                    self.skin_inside_max = Some(share);
+                    self.skin_inside_frame = frame;
+                }
             }
         }
         for (i, m) in solver.muscles().iter().enumerate() {

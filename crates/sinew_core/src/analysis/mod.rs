@@ -15,6 +15,7 @@ pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use verdict::{Thresholds, Verdict};
 
 use crate::closest::TargetSource;
+use crate::muscle::TargetRef;
 use crate::solver::Solver;
 use glam::Vec3;
 
@@ -134,6 +135,63 @@ pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
                     })
                 })
                 .count()
+        })
+        .collect()
+}
+
+/// Per body with a skin binding (a skin: [`crate::muscle::Muscle::binding`]
+/// not empty), `(body, surface vertices inside one of its own targets — a
+/// muscle or a bone it slides on —, surface vertices)`; bodies without a
+/// binding are left out.
+pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
+    solver
+        .muscles()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| !m.binding.is_empty())
+        .map(|(i, m)| {
+            let targets: Vec<_> = solver
+                .targets()
+                .iter()
+                .filter(|t| {
+                    m.targets.iter().any(|r| match (*r, t.source) {
+                        (TargetRef::Muscle(o), TargetSource::Muscle(s)) => o == s,
+                        (TargetRef::Bone(b), TargetSource::Bone(s)) => b == s,
+                        _ => false,
+                    })
+                })
+                .collect();
+            let inside = m.x[..m.surface_count]
+                .iter()
+                .filter(|&&x| {
+                    targets.iter().any(|t| {
+                        t.lower_bound(x) == 0.0
+                            && t.closest_within(x, None, f32::INFINITY)
+                                .is_some_and(|h| h.signed_distance < 0.0 && t.contains(x))
+                    })
+                })
+                .count();
+            (i, inside, m.surface_count)
+        })
+        .collect()
+}
+
+/// Per body with a skin binding, `(body, largest distance of a bound vertex
+/// from its skinned position)` for the bones' current poses. Units: m.
+pub fn skin_bind_distances(solver: &Solver) -> Vec<(usize, f32)> {
+    let pose = |b: usize| solver.bones()[b].transform;
+    solver
+        .muscles()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| !m.binding.is_empty())
+        .map(|(i, m)| {
+            let far = m
+                .binding
+                .iter()
+                .map(|b| (m.x[b.vertex.index()] - b.goal(&pose)).length() / m.length_unit)
+                .fold(0.0, f32::max);
+            (i, far)
         })
         .collect()
 }

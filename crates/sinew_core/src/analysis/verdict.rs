@@ -40,6 +40,12 @@ pub struct Thresholds {
     /// Time after the scene's last motion key after which the end of a run
     /// counts as at rest. Units: s. Default: `2`.
     pub settle: f32,
+    /// Largest share of skin vertices inside a muscle or bone, in a checked
+    /// frame. Default: `0.005`.
+    pub skin_inside: f32,
+    /// At rest: largest distance of a skin vertex from its skinned position.
+    /// Units: m. Default: `0.002`.
+    pub skin_bind: f32,
 }
 
 impl Default for Thresholds {
@@ -56,6 +62,8 @@ impl Default for Thresholds {
             rest_strain: [0.8, 1.25],
             rest_deviation: 0.003,
             settle: 2.0,
+            skin_inside: 0.005,
+            skin_bind: 0.002,
         }
     }
 }
@@ -129,18 +137,38 @@ impl RunMetrics {
             format!("≤ {} %", limits.penetration * 100.0),
             Some(self.penetration_max <= limits.penetration),
         );
+        if let Some(share) = self.skin_inside_max {
+            push(
+                "skin inside",
+                format!(
+                    "{:.2} % of skin vertices in a muscle or bone (frame {})",
+                    share * 100.0,
+                    self.skin_inside_frame
+                ),
+                format!("≤ {} %", limits.skin_inside * 100.0),
+                Some(share <= limits.skin_inside),
+            );
+        }
         let gain = |i: usize| {
             let v = &muscles[i].params.volume;
             f64::from(v.gain * v.activation_gain.max(1.0))
         };
-        let (lo_i, lo) = worst(&mut self.volume_ratio.iter().map(|r| -r.0));
-        let (hi_i, hi) = worst(
+        // Bodies without a volume constraint (a skin) keep no volume.
+        let kept = |i: usize| muscles[i].params.volume.enabled;
+        let (lo_i, lo) = worst(
             &mut self
                 .volume_ratio
                 .iter()
                 .enumerate()
-                .map(|(i, r)| r.1 / gain(i)),
+                .map(|(i, r)| if kept(i) { -r.0 } else { f64::NEG_INFINITY }),
         );
+        let (hi_i, hi) = worst(&mut self.volume_ratio.iter().enumerate().map(|(i, r)| {
+            if kept(i) {
+                r.1 / gain(i)
+            } else {
+                f64::NEG_INFINITY
+            }
+        }));
         push(
             "volume",
             format!(
@@ -243,6 +271,19 @@ impl RunMetrics {
             format!("≤ {} mm", limits.rest_deviation * 1e3),
             judged(d <= f64::from(limits.rest_deviation)),
         );
+        let binds = super::skin_bind_distances(solver);
+        if let Some(&(b_i, far)) = binds.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+            push(
+                "rest skin bind",
+                format!(
+                    "{:.3} mm from the skinned position ({})",
+                    far * 1e3,
+                    name(b_i)
+                ),
+                format!("≤ {} mm", limits.skin_bind * 1e3),
+                judged(far <= limits.skin_bind),
+            );
+        }
         out
     }
 }

@@ -31,7 +31,9 @@ use crate::animation::{Curve, TransformTrack};
 use crate::error::SceneError;
 use crate::mesh::primitives::MeshGenerator;
 use crate::mesh::{LoadOptions, SurfaceMesh, load_mesh};
-use crate::muscle::{AttachmentDesc, MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
+use crate::muscle::{
+    AttachmentDesc, MuscleDesc, MuscleParams, Roots, SkinBindingDesc, TargetRef, VertexMaps,
+};
 use crate::sensor::{ActivationLayer, ActivationRig, SensorSpec};
 use crate::skeleton::Skeleton;
 use crate::solver::{Solver, SolverSettings};
@@ -169,6 +171,25 @@ pub struct MuscleSpec {
     pub drive: Vec<ActivationLayer>,
     /// Per-vertex maps.
     pub maps: VertexMaps,
+    /// Skin binding: each surface vertex held softly to its linear-blend
+    /// skinned position (a skin over the muscles); `None`: unbound.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub binding: Option<SkinBindingSpec>,
+}
+
+/// A skin binding in a scene: per surface vertex, up to four bones (named
+/// through `bones`) and weights, as a glTF skin's `JOINTS_0`/`WEIGHTS_0`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SkinBindingSpec {
+    /// The bones the influences index, by name.
+    pub bones: Vec<String>,
+    /// Per surface vertex: `(index into bones, weight)` pairs, at most
+    /// four, weights ≥ 0 summing to 1; an empty list leaves it unbound.
+    pub influences: Vec<Vec<(u16, f32)>>,
+    /// Per surface vertex, the binding's strength (its compliance is
+    /// divided by it; 0 unbinds). Empty: 1 everywhere. Unitless, ≥ 0.
+    pub strength: Vec<f32>,
 }
 
 impl Scene {
@@ -337,6 +358,45 @@ impl Scene {
                     });
                 }
             }
+            let binding = m
+                .binding
+                .as_ref()
+                .map(|spec| {
+                    let bones = spec
+                        .bones
+                        .iter()
+                        .enumerate()
+                        .map(|(k, b)| {
+                            bone_index(format!("muscle '{}' binding bone {k}", m.name), b)
+                        })
+                        .collect::<Result<Vec<_>, _>>()?;
+                    let influences = spec
+                        .influences
+                        .iter()
+                        .enumerate()
+                        .map(|(v, list)| {
+                            list.iter()
+                                .map(|&(k, w)| {
+                                    let bone = bones.get(k as usize).ok_or_else(|| {
+                                        SceneError::Invalid {
+                                            context: format!(
+                                                "muscle '{}' binding vertex {v}",
+                                                m.name
+                                            ),
+                                            reason: format!("bone {k} of {} named", bones.len()),
+                                        }
+                                    })?;
+                                    Ok((*bone, w))
+                                })
+                                .collect::<Result<Vec<_>, SceneError>>()
+                        })
+                        .collect::<Result<Vec<_>, _>>()?;
+                    Ok::<_, SceneError>(SkinBindingDesc {
+                        influences,
+                        strength: spec.strength.clone(),
+                    })
+                })
+                .transpose()?;
             descs.push(MuscleDesc {
                 name: m.name.clone(),
                 mesh,
@@ -345,7 +405,7 @@ impl Scene {
                 targets,
                 params: m.params.clone(),
                 maps: m.maps.clone(),
-                binding: None,
+                binding,
             });
         }
         for (mi, desc) in descs.into_iter().enumerate() {

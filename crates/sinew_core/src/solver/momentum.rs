@@ -26,9 +26,13 @@ pub struct RigidMomentum {
 }
 
 /// Whether the solver conserves `m`'s momentum explicitly: no attachments,
-/// no targets, and every particle dynamic.
+/// no skin binding (both tie it to the bones), no targets, and every
+/// particle dynamic.
 pub(crate) fn is_free(m: &Muscle) -> bool {
-    m.attachments.is_empty() && m.targets.is_empty() && m.w.iter().all(|&w| w > 0.0)
+    m.attachments.is_empty()
+        && m.binding.is_empty()
+        && m.targets.is_empty()
+        && m.w.iter().all(|&w| w > 0.0)
 }
 
 fn centre_of_mass(m: &Muscle) -> (f32, Vec3) {

@@ -191,7 +191,7 @@ impl AnatomyFit {
 /// as the eyes' and mouth's are tolerated).
 #[derive(Clone, Debug)]
 pub struct SkinVolume {
-    surface: TargetSurface,
+    pub(super) surface: TargetSurface,
 }
 
 impl SkinVolume {

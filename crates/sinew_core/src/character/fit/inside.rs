@@ -3,6 +3,7 @@
 //! length, so the fit shrink-wraps what sticks out.
 
 use super::{FittedGeometry, SkinVolume};
+use crate::closest::{TargetSource, TargetSurface};
 use crate::solver::Solver;
 use glam::Vec3;
 
@@ -100,15 +101,35 @@ impl SkinVolume {
             self.narrow_inside(points, options.margin);
             let neighbours = vertex_neighbours(points.len(), triangles);
             let pull = |p: Vec3| self.pull_of(p, options.margin);
-            if let Some(bones) = bones {
-                // Out of the bones where that stays inside the skin, then
-                // into the skin, a few times over.
-                let push = |p: Vec3| {
-                    let out = bones.push_of(p, options.bone_clearance)?;
-                    (self.outside_by(p + out) < 0.0).then_some(out)
-                };
-                for _ in 0..3 {
-                    spread_moves(points, &neighbours, options, pull);
+            // Into the skin; under every skin vertex (a coarse surface can
+            // cross a finer skin between its own vertices); out of the bones
+            // where that stays inside the skin; a few times over.
+            let push = |p: Vec3| {
+                let out = bones?.push_of(p, options.bone_clearance)?;
+                (self.outside_by(p + out) < 0.0).then_some(out)
+            };
+            // The skin vertices it can reach (it only moves inwards).
+            let (lo, hi) = points.iter().fold(
+                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                |(lo, hi), &p| (lo.min(p), hi.max(p)),
+            );
+            let reach = Vec3::splat(options.margin + 0.01);
+            let near: Vec<Vec3> = (self.surface.positions.iter().copied())
+                .filter(|s| s.cmpge(lo - reach).all() && s.cmple(hi + reach).all())
+                .collect();
+            for _ in 0..3 {
+                spread_moves(points, &neighbours, options, pull);
+                if !near.is_empty() {
+                    // A few rounds: each one tests every near skin vertex.
+                    let few = PullInside {
+                        rounds: options.rounds.min(4),
+                        ..*options
+                    };
+                    spread_rounds(points, &neighbours, &few, |points, _| {
+                        below_skin_vertices(&near, points, triangles, options.margin)
+                    });
+                }
+                if bones.is_some() {
                     spread_moves(points, &neighbours, options, push);
                 }
             }
@@ -144,7 +165,60 @@ impl SkinVolume {
         let short = clearance - hit.signed_distance;
         (short > 0.0).then(|| short * hit.normal)
     }
+}
 
+/// How deep inside a fitted surface a skin vertex is looked for. Units: m.
+const DEEPEST: f32 = 0.02;
+
+/// Per vertex of a surface (`points`, `triangles`), how far in (m) to go so
+/// that none of the `skin` vertices is inside it or closer than `margin`
+/// above it: the corners of the surface's triangle nearest to such a skin
+/// vertex go in along the surface's normal there (the largest move a corner
+/// is asked for).
+fn below_skin_vertices(
+    skin: &[Vec3],
+    points: &[Vec3],
+    triangles: &[[u32; 3]],
+    margin: f32,
+) -> Vec<Option<Vec3>> {
+    let mut moves: Vec<Option<Vec3>> = vec![None; points.len()];
+    if triangles.is_empty() {
+        return moves;
+    }
+    let mut surface = TargetSurface::new(
+        "fitted surface",
+        TargetSource::Bone(0),
+        points.to_vec(),
+        triangles.to_vec(),
+    );
+    surface.set_transform(glam::Affine3A::IDENTITY);
+    for &skin in skin {
+        if surface.lower_bound(skin) > margin {
+            continue;
+        }
+        let Some(hit) = surface.closest_within(skin, None, margin.max(0.0) + 1.0) else {
+            continue;
+        };
+        // Too close above it, or inside it (the side of the nearest point's
+        // normal, confirmed by the winding number — costly, so only up to
+        // `DEEPEST` in).
+        let short = margin - hit.signed_distance;
+        let sd = hit.signed_distance;
+        if short <= 0.0 || sd < -DEEPEST || (sd < 0.0 && !surface.contains(skin)) {
+            continue;
+        }
+        let step = -short * hit.normal;
+        for &corner in &surface.triangles[hit.triangle as usize] {
+            let slot = &mut moves[corner as usize];
+            if slot.is_none_or(|m| m.length_squared() < step.length_squared()) {
+                *slot = Some(step);
+            }
+        }
+    }
+    moves
+}
+
+impl SkinVolume {
     /// Shifts `points` rigidly by their vertices' mean pull, in rounds,
     /// while that lowers the number of vertices short of `margin` inside.
     fn shift_inside(&self, points: &mut [Vec3], margin: f32) {
@@ -207,22 +281,35 @@ fn spread_moves(
     options: &PullInside,
     move_of: impl Fn(Vec3) -> Option<Vec3>,
 ) {
+    spread_rounds(points, neighbours, options, |points, moved| {
+        points
+            .iter()
+            .zip(moved)
+            .map(|(&p, &asked)| if asked { move_of(p) } else { None })
+            .collect()
+    });
+}
+
+/// [`spread_moves`] with the moves of a whole round at once: `moves_of`
+/// gives each vertex's move (`None`: stays) for the current points and
+/// which vertices the last round moved (all, the first time).
+fn spread_rounds(
+    points: &mut [Vec3],
+    neighbours: &[Vec<usize>],
+    options: &PullInside,
+    mut moves_of: impl FnMut(&[Vec3], &[bool]) -> Vec<Option<Vec3>>,
+) {
     let n = points.len();
-    let mut check: Vec<bool> = vec![true; n];
+    let mut moved = vec![true; n];
     let mut moves = vec![Vec3::ZERO; n];
     let mut pinned = vec![false; n];
     for _ in 0..options.rounds {
+        let asked = moves_of(points, &moved);
         let mut any = false;
         for v in 0..n {
-            moves[v] = Vec3::ZERO;
-            pinned[v] = false;
-            if check[v]
-                && let Some(m) = move_of(points[v])
-            {
-                moves[v] = m;
-                pinned[v] = true;
-                any = true;
-            }
+            moves[v] = asked.get(v).copied().flatten().unwrap_or(Vec3::ZERO);
+            pinned[v] = moves[v] != Vec3::ZERO;
+            any |= pinned[v];
         }
         if !any {
             break;
@@ -240,7 +327,7 @@ fn spread_moves(
             std::mem::swap(&mut moves, &mut next);
         }
         for v in 0..n {
-            check[v] = moves[v] != Vec3::ZERO;
+            moved[v] = moves[v] != Vec3::ZERO;
             points[v] += moves[v];
         }
     }

@@ -12,11 +12,13 @@ mod geometry;
 mod inside;
 mod scene;
 mod similarity;
+mod skin;
 
 pub use geometry::{FittedGeometry, SkinVolume};
 pub use inside::{PullInside, PullReport};
 pub use scene::FittedScene;
 pub use similarity::least_squares_similarity;
+pub use skin::SkinLayer;
 
 use super::{CharacterError, SkinnedCharacter};
 use crate::skeleton::SkeletonRig;
