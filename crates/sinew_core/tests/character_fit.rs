@@ -272,3 +272,74 @@ fn rig_maps_naming_what_is_not_there_are_refused() {
     }
     std::fs::remove_file(&file).unwrap();
 }
+
+/// Bad input: a skin with holes (eyes, mouth: here the whole face) still
+/// takes the anatomy; a rig with a segment of zero length is refused by
+/// name; a fitted scene that cannot be written names the file.
+#[test]
+fn open_skins_degenerate_rigs_and_unwritable_folders() {
+    let (mut character, solver, rest) = makehuman_and_t7();
+    let rig = solver.skeleton().unwrap();
+    let map = RigMap::game_engine();
+    // The face open: every triangle in front of the head gone.
+    let head = character.joints[character.joint("head").unwrap()].origin;
+    let before = character.triangles.len();
+    let positions = character.positions.clone();
+    character.triangles.retain(|t| {
+        !t.iter().any(|&v| {
+            let p = positions[v as usize];
+            p.y > head.y - 0.05 && p.z > head.z + 0.04
+        })
+    });
+    assert!(character.triangles.len() + 100 < before);
+    let mut fit = AnatomyFit::new(&character, rig, &rest, &map).unwrap();
+    let skin = SkinVolume::new(&character);
+    fit.settle_in_skin(&solver, &skin, &map.free, 0.15);
+    let mut geometry = fit.geometry(&solver);
+    let [muscles, _] = geometry.pull_inside(
+        &solver,
+        &skin,
+        &PullInside::default(),
+        &PullInside::default(),
+    );
+    assert!(
+        muscles.outside_after * 100 <= geometry.muscles.iter().map(Vec::len).sum::<usize>(),
+        "{muscles:?}"
+    );
+    // A thigh of zero length: the hip's segment has no direction.
+    let mut squashed = character.clone();
+    let (thigh, calf) = (
+        squashed.joint("thigh_l").unwrap(),
+        squashed.joint("calf_l").unwrap(),
+    );
+    squashed.joints[calf].origin = squashed.joints[thigh].origin;
+    let error = AnatomyFit::new(&squashed, rig, &rest, &map)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("thigh_l") && error.contains("no direction"),
+        "{error}"
+    );
+    // A scene into a folder under a regular file.
+    let anatomy = Scene::load(&repository().join("assets/scenes/t7.ron")).unwrap();
+    let fitted = fit
+        .scene(
+            &anatomy,
+            &solver,
+            &geometry,
+            &character,
+            None,
+            &ClipPlayback::default(),
+        )
+        .unwrap();
+    let file = std::env::temp_dir().join(format!("sinew_not_a_folder_{}", std::process::id()));
+    std::fs::write(&file, b"a file").unwrap();
+    let error = fitted.save(&file.join("fitted.ron")).unwrap_err();
+    std::fs::remove_file(&file).unwrap();
+    match &error {
+        CharacterError::Io { file: named, .. } => {
+            assert!(named.starts_with(&file), "{error}")
+        }
+        other => panic!("expected an I/O error naming the folder: {other:?}"),
+    }
+}

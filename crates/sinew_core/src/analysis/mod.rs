@@ -14,7 +14,7 @@ pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
 pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use verdict::{Thresholds, Verdict};
 
-use crate::closest::TargetSource;
+use crate::closest::{TargetSource, TargetSurface};
 use crate::muscle::TargetRef;
 use crate::solver::Solver;
 use glam::Vec3;
@@ -126,29 +126,36 @@ pub fn penetrating_vertices(solver: &Solver, depth: f32) -> Vec<usize> {
             let depth = depth * m.length_unit;
             m.x[..m.surface_count]
                 .iter()
-                .filter(|&&x| {
-                    bones.iter().any(|b| {
-                        // Outside the bone's box is outside the bone.
-                        b.lower_bound(x) == 0.0
-                            && b.closest_within(x, None, f32::INFINITY)
-                                .is_some_and(|h| h.signed_distance < -depth && b.contains(x))
-                    })
-                })
+                .filter(|&&x| bones.iter().any(|b| inside_by(b, x, depth)))
                 .count()
         })
         .collect()
 }
 
-/// Per body with a skin binding (a skin: [`crate::muscle::Muscle::binding`]
-/// not empty), `(body, surface vertices inside one of its own targets — a
-/// muscle or a bone it slides on —, surface vertices)`; bodies without a
-/// binding are left out.
-pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
+/// Whether `x` is deeper than `depth` inside `target` (its nearest point's
+/// side, confirmed by the winding number; outside its box is outside).
+fn inside_by(target: &TargetSurface, x: Vec3, depth: f32) -> bool {
+    target.lower_bound(x) == 0.0
+        && target
+            .closest_within(x, None, f32::INFINITY)
+            .is_some_and(|h| h.signed_distance < -depth && target.contains(x))
+}
+
+/// The bodies with a skin binding (skins: [`crate::muscle::Muscle::binding`]
+/// not empty), with their indices.
+fn skins(solver: &Solver) -> impl Iterator<Item = (usize, &crate::muscle::Muscle)> {
     solver
         .muscles()
         .iter()
         .enumerate()
         .filter(|(_, m)| !m.binding.is_empty())
+}
+
+/// Per body with a skin binding, `(body, surface vertices inside one of its
+/// own targets — a muscle or a bone it slides on —, surface vertices)`;
+/// bodies without a binding are left out.
+pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
+    skins(solver)
         .map(|(i, m)| {
             let targets: Vec<_> = solver
                 .targets()
@@ -163,13 +170,7 @@ pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
                 .collect();
             let inside = m.x[..m.surface_count]
                 .iter()
-                .filter(|&&x| {
-                    targets.iter().any(|t| {
-                        t.lower_bound(x) == 0.0
-                            && t.closest_within(x, None, f32::INFINITY)
-                                .is_some_and(|h| h.signed_distance < 0.0 && t.contains(x))
-                    })
-                })
+                .filter(|&&x| targets.iter().any(|t| inside_by(t, x, 0.0)))
                 .count();
             (i, inside, m.surface_count)
         })
@@ -180,11 +181,7 @@ pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
 /// from its skinned position)` for the bones' current poses. Units: m.
 pub fn skin_bind_distances(solver: &Solver) -> Vec<(usize, f32)> {
     let pose = |b: usize| solver.bones()[b].transform;
-    solver
-        .muscles()
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| !m.binding.is_empty())
+    skins(solver)
         .map(|(i, m)| {
             let far = m
                 .binding

@@ -54,15 +54,7 @@ impl JointClip {
         period: f32,
     ) -> Result<Self, CharacterError> {
         const KEYS: usize = 16;
-        let joint = |name: &str| {
-            character
-                .joint(name)
-                .ok_or_else(|| CharacterError::Invalid {
-                    character: character.name.clone(),
-                    element: format!("joint {name}"),
-                    reason: "no such joint (needed by clip elbow flexion)".into(),
-                })
-        };
+        let joint = |name: &str| character.require_joint(name, "clip elbow flexion");
         let mut channels = Vec::with_capacity(arms.len());
         for &(upper, fore, hand) in arms {
             let (upper, fore, hand) = (joint(upper)?, joint(fore)?, joint(hand)?);

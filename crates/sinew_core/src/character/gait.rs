@@ -91,15 +91,7 @@ impl JointClip {
         name: &str,
         cycle: &WalkCycle,
     ) -> Result<Self, CharacterError> {
-        let joint = |name: &str| {
-            character
-                .joint(name)
-                .ok_or_else(|| CharacterError::Invalid {
-                    character: character.name.clone(),
-                    element: format!("joint {name}"),
-                    reason: "no such joint (needed by the walk cycle)".into(),
-                })
-        };
+        let joint = |name: &str| character.require_joint(name, "the walk cycle");
         let origin = |j: usize| character.joints[j].origin;
         let keys = cycle.keys.max(2);
         let times: Vec<f32> = (0..=keys)

@@ -65,6 +65,16 @@ impl SkinnedCharacter {
         self.joints.iter().position(|j| j.name == name)
     }
 
+    /// The joint called `name`, or an error naming it and what needs it
+    /// (`needed_by`, e.g. "the walk cycle").
+    pub fn require_joint(&self, name: &str, needed_by: &str) -> Result<usize, CharacterError> {
+        self.joint(name).ok_or_else(|| CharacterError::Invalid {
+            character: self.name.clone(),
+            element: format!("joint {name}"),
+            reason: format!("no such joint (needed by {needed_by})"),
+        })
+    }
+
     /// A joint's translation relative to its parent at the bind pose (m).
     pub fn local_translation(&self, joint: usize) -> Vec3 {
         let j = &self.joints[joint];

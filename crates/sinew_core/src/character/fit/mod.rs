@@ -26,6 +26,10 @@ use glam::{Affine3A, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+/// The smallest segment scale (character length / anatomy length) a fit
+/// accepts: below it the character's joints of the segment coincide.
+const MIN_SCALE: f32 = 1e-3;
+
 /// Which anatomy body each character joint is: `(joint, body)` pairs.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -284,16 +288,31 @@ impl AnatomyFit {
                 } else {
                     least_squares_similarity(&from, &to)
                 };
-                fitted.ok_or_else(|| {
+                let segment = || {
+                    format!(
+                        "segment {} / {}",
+                        character.joints[j].name,
+                        rig.body_names()[b]
+                    )
+                };
+                let fitted = fitted.ok_or_else(|| {
                     invalid(
-                        format!(
-                            "segment {} / {}",
-                            character.joints[j].name,
-                            rig.body_names()[b]
-                        ),
+                        segment(),
                         "its children are at its own origin: no direction to fit".into(),
                     )
-                })?
+                })?;
+                // The character's joints of the segment on top of each
+                // other: a scale of (almost) zero would crush its bones.
+                if !(fitted.scale.is_finite() && fitted.scale > MIN_SCALE) {
+                    return Err(invalid(
+                        segment(),
+                        format!(
+                            "the character's joints of this segment coincide (scale {}): no direction to fit",
+                            fitted.scale
+                        ),
+                    ));
+                }
+                fitted
             };
             let fitted = !children.is_empty();
             let end = if fitted {
