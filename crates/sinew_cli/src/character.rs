@@ -3,7 +3,8 @@
 
 use sinew_core::Solver;
 use sinew_core::character::fit::{
-    AnatomyFit, FittedGeometry, PullInside, RigMap, SkinLayer, SkinVolume,
+    AnatomyFit, FitOptions, FittedAnatomy, FittedGeometry, RigMap, SkinLayer, SkinVolume,
+    fit_anatomy,
 };
 use sinew_core::character::makehuman::{self, MakeHumanOptions};
 use sinew_core::character::{ClipPlayback, SkinnedCharacter, glb};
@@ -178,22 +179,23 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
     }
     let character = read.character;
     let (_, solver) = crate::commands::load_solver(&args.scene)?;
-    let rig = solver
-        .skeleton()
-        .ok_or_else(|| format!("{}: the scene has no skeleton to fit", args.scene))?;
     let map = match &args.map {
         Some(path) => RigMap::load(path)?,
         None => RigMap::game_engine(),
     };
-    let unit = solver.settings.length_unit;
-    let mut rest = Vec::new();
-    rig.pose(&vec![0.0; rig.value_count()], &mut rest);
-    for pose in &mut rest {
-        pose.translation /= unit;
-    }
-    let mut fit = AnatomyFit::new(&character, rig, &rest, &map)?;
-    let skin = SkinVolume::new(&character);
-    for (body, dz) in fit.settle_in_skin(&solver, &skin, &map.free, 0.15) {
+    let options = FitOptions {
+        pull: !args.no_pull,
+        ..FitOptions::default()
+    };
+    let FittedAnatomy {
+        fit,
+        geometry,
+        skin,
+        settled,
+        pulled,
+    } = fit_anatomy(&character, &solver, &map, &options)
+        .map_err(|e| format!("{}: {e}", args.scene))?;
+    for (body, dz) in settled {
         println!(
             "{body}: moved {:+.0} mm front to back to sit inside the skin",
             dz * 1000.0
@@ -214,23 +216,14 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
             angle.to_degrees()
         );
     }
-    let mut geometry = fit.geometry(&solver);
-    if !args.no_pull {
-        let muscles = PullInside::default();
-        let bones = PullInside {
-            margin: 0.001,
-            ..PullInside::default()
-        };
-        let [m, b] = geometry.pull_inside(&solver, &skin, &muscles, &bones);
-        for (what, r) in [("muscle", m), ("bone", b)] {
-            println!(
-                "pulled inside the skin: {what} vertices outside {} → {}, largest move {:.1} mm, {} triangles folded",
-                r.outside_before,
-                r.outside_after,
-                r.largest_move * 1000.0,
-                r.folded
-            );
-        }
+    for (what, r) in ["muscle", "bone"].into_iter().zip(pulled.iter().flatten()) {
+        println!(
+            "pulled inside the skin: {what} vertices outside {} → {}, largest move {:.1} mm, {} triangles folded",
+            r.outside_before,
+            r.outside_after,
+            r.largest_move * 1000.0,
+            r.folded
+        );
     }
     let outside = |points: &[Vec3]| points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
     let mut per_muscle: Vec<(f32, &str, usize, usize)> = geometry

@@ -6,7 +6,8 @@
 use sinew_core::Solver;
 use sinew_core::analysis::skin_inside_vertices;
 use sinew_core::character::fit::{
-    AnatomyFit, FittedGeometry, PullInside, RigMap, SkinLayer, SkinVolume,
+    AnatomyFit, FitOptions, FittedAnatomy, FittedGeometry, PullInside, RigMap, SkinLayer,
+    SkinVolume, fit_anatomy,
 };
 use sinew_core::character::{CharacterError, ClipPlayback, SkinnedCharacter, glb};
 use sinew_core::glam::{Affine3A, Vec3};
@@ -123,18 +124,21 @@ fn limb_joints_land_on_the_characters_and_the_muscles_follow() {
 /// the muscles held to them.
 #[test]
 fn the_fitted_scene_walks_with_the_character() {
-    let (character, solver, rest) = makehuman_and_t7();
-    let rig = solver.skeleton().unwrap();
-    let map = RigMap::game_engine();
-    let mut fit = AnatomyFit::new(&character, rig, &rest, &map).unwrap();
-    let skin = SkinVolume::new(&character);
-    fit.settle_in_skin(&solver, &skin, &map.free, 0.15);
-    let mut geometry = fit.geometry(&solver);
-    let bone_options = PullInside {
-        margin: 0.001,
-        ..PullInside::default()
-    };
-    geometry.pull_inside(&solver, &skin, &PullInside::default(), &bone_options);
+    let (character, solver, _) = makehuman_and_t7();
+    let FittedAnatomy {
+        fit,
+        geometry,
+        skin,
+        pulled,
+        ..
+    } = fit_anatomy(
+        &character,
+        &solver,
+        &RigMap::game_engine(),
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert!(pulled.is_some_and(|[m, b]| m.outside_after == 0 && b.outside_after == 0));
     let walk = character.clips.iter().find(|c| c.name == "walk").unwrap();
     let playback = ClipPlayback {
         lead_in: 0.5,

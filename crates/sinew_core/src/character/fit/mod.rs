@@ -10,12 +10,14 @@
 
 mod geometry;
 mod inside;
+mod pipeline;
 mod scene;
 mod similarity;
 mod skin;
 
 pub use geometry::{FittedGeometry, SkinVolume};
 pub use inside::{PullInside, PullReport};
+pub use pipeline::{FitOptions, FittedAnatomy, fit_anatomy};
 pub use scene::FittedScene;
 pub use similarity::least_squares_similarity;
 pub use skin::SkinLayer;
