@@ -330,6 +330,13 @@ pub struct MuscleState {
     pub(crate) bone_poses: Vec<Affine3A>,
     /// The targets Sliding / Soft / Hard are linked to, in order.
     pub(crate) connected: Vec<Entity>,
+    /// A skin binding's bones: the core's binding bone index `k` is the
+    /// `k`-th entity (a scene's bones, in scene order). Empty without a
+    /// binding.
+    pub(crate) bound_bones: Vec<Entity>,
+    /// Pose of each bound bone at the current substep (kept when a bone
+    /// goes away).
+    pub(crate) bind_poses: Vec<Affine3A>,
 }
 
 impl MuscleState {
@@ -344,6 +351,8 @@ impl MuscleState {
             attached: Vec::new(),
             bone_poses: Vec::new(),
             connected: Vec::new(),
+            bound_bones: Vec::new(),
+            bind_poses: Vec::new(),
         }
     }
 

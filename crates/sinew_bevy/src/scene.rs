@@ -258,13 +258,13 @@ fn spawn(commands: &mut Commands, root: Entity, scene: &SinewScene) -> SpawnedSc
         live.driven = driven;
         spawn_attachments(commands, entity, m, |b| bones[b]);
         spawn_connections(commands, entity, targets);
+        let mut state = MuscleState::new(m.clone());
+        if !m.binding.is_empty() {
+            // The binding names bones by their index in the scene.
+            state.bound_bones.clone_from(&bones);
+        }
         let mut e = commands.entity(entity);
-        e.insert((
-            Name::new(m.name.clone()),
-            live,
-            muscle_snapshot(m),
-            MuscleState::new(m.clone()),
-        ));
+        e.insert((Name::new(m.name.clone()), live, muscle_snapshot(m), state));
         if let Some(curve) = curve {
             e.insert(ActivationCurve(curve));
         }

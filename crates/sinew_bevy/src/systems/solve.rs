@@ -112,6 +112,25 @@ pub(crate) fn begin_substep(
                 .unwrap_or(Affine3A::IDENTITY)
         };
         pipeline::update_attachment_goals(&mut state.muscle, &pose);
+        if !state.muscle.binding.is_empty() {
+            // Bind goals from the binding's own bones (the attachments'
+            // indices are not theirs).
+            let MuscleState {
+                bind_poses,
+                bound_bones,
+                ..
+            } = state;
+            bind_poses.resize(bound_bones.len(), Affine3A::IDENTITY);
+            for (cached, &bone) in bind_poses.iter_mut().zip(bound_bones.iter()) {
+                if let Ok(p) = poses.get(bone) {
+                    *cached = p.substep;
+                }
+            }
+            let cached = &state.bind_poses;
+            sinew_core::muscle::update_bind_goals(&mut state.muscle, &|b| {
+                cached.get(b).copied().unwrap_or(Affine3A::IDENTITY)
+            });
+        }
     }
     watch.lap(&mut timings.step.update_targets);
     let workers = &mut *workers;

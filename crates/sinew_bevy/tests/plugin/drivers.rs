@@ -1,7 +1,7 @@
 //! The Bevy driver and the plain one run the same pipeline: on the arm (T5,
-//! a skeleton and sensors) and the full body (T7, 144 muscles) they agree
-//! bit for bit with every method at 1, 2 and 8 threads, and the colour
-//! sweeps across muscles are taken by both.
+//! a skeleton and sensors), the full body (T7, 144 muscles) and a skin bound
+//! to a moving bone they agree bit for bit with every method at 1, 2 and 8
+//! threads, and the colour sweeps across muscles are taken by both.
 
 use crate::common;
 
@@ -86,6 +86,12 @@ fn agree_on(scene_file: &str, frames: usize) {
     let path = asset(scene_file);
     let scene = Scene::load(&path).unwrap();
     let base = scene.instantiate(path.parent().unwrap()).unwrap();
+    agree_on_scene(scene_file, &scene, &base, frames, true);
+}
+
+/// [`agree_on`] for a scene already built (`base`); `large`: big enough
+/// that the colour sweeps must run by colour when asked to.
+fn agree_on_scene(scene_file: &str, scene: &Scene, base: &Solver, frames: usize, large: bool) {
     let mut configs: Vec<_> = SolverMethod::EVERY
         .iter()
         .flat_map(|&m| [1, 2, 8].map(|t| (m, t, SweepSchedule::Auto)))
@@ -95,7 +101,7 @@ fn agree_on(scene_file: &str, frames: usize) {
     }
     let mut failures = Vec::new();
     for (method, threads, schedule) in configs {
-        let r = run(&scene, &base, method, threads, schedule, frames);
+        let r = run(scene, base, method, threads, schedule, frames);
         if let Some(muscle) = r.differs {
             failures.push(format!(
                 "{method:?}, {threads} threads, {schedule:?}: '{muscle}' differs"
@@ -105,7 +111,7 @@ fn agree_on(scene_file: &str, frames: usize) {
             r.plain_by_color, r.bevy_by_color,
             "{method:?}, {threads} threads, {schedule:?}: the drivers chose different schedules"
         );
-        if schedule == SweepSchedule::ByColor {
+        if large && schedule == SweepSchedule::ByColor {
             assert!(
                 r.bevy_by_color > 0,
                 "{method:?}, {threads} threads: no iteration was swept by colour"
@@ -123,4 +129,79 @@ fn bevy_and_plain_agree_bit_for_bit_on_the_arm() {
 #[test]
 fn bevy_and_plain_agree_bit_for_bit_on_the_full_body() {
     agree_on("scenes/t7.ron", 2);
+}
+
+/// A skin bound to a moving bone over a muscle on it: the binding's bones
+/// are the scene's, in the Bevy driver as in the plain one.
+#[test]
+fn bevy_and_plain_agree_bit_for_bit_on_a_bound_skin() {
+    use sinew_core::animation::{TransformKey, TransformTrack};
+    use sinew_core::glam::{Quat, Vec3};
+    use sinew_core::mesh::primitives::MeshGenerator;
+    use sinew_core::muscle::{MuscleParams, Roots};
+    use sinew_core::scene::{AttachmentSpec, BoneSpec, MeshSource, MuscleSpec, SkinBindingSpec};
+    let key = |time: f32, angle: f32| TransformKey {
+        time,
+        translation: Vec3::new(0.0, 0.2 * angle, 0.0),
+        rotation: Quat::from_rotation_z(angle),
+    };
+    let ellipsoid = |radii: Vec3, n: u32| MeshGenerator::Ellipsoid {
+        center: Vec3::ZERO,
+        radii,
+        segments: n,
+        stacks: n,
+    };
+    let skin = ellipsoid(Vec3::new(0.08, 0.035, 0.035), 12);
+    let skin_vertices = skin.build("skin").unwrap().vertex_count();
+    let scene = Scene {
+        name: "bound skin".into(),
+        frames: 6,
+        bones: vec![
+            BoneSpec {
+                name: "still".into(),
+                ..Default::default()
+            },
+            BoneSpec {
+                name: "arm".into(),
+                track: TransformTrack {
+                    keys: vec![key(0.0, 0.0), key(0.1, 0.5)],
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+        ],
+        muscles: vec![
+            MuscleSpec {
+                name: "belly".into(),
+                mesh: MeshSource::Generator(ellipsoid(Vec3::new(0.06, 0.02, 0.02), 10)),
+                roots: Roots::Attachments,
+                attachments: [0, 91]
+                    .map(|v| AttachmentSpec {
+                        bone: Some("arm".into()),
+                        vertex: Some(v),
+                        ..Default::default()
+                    })
+                    .to_vec(),
+                ..Default::default()
+            },
+            MuscleSpec {
+                name: "skin".into(),
+                mesh: MeshSource::Generator(skin),
+                roots: Roots::Vertices(Vec::new()),
+                targets: vec!["belly".into()],
+                params: MuscleParams::surface_layer(1.1, 0.02),
+                // Bone 1 of the scene (a binding names bones by scene index).
+                binding: Some(SkinBindingSpec {
+                    bones: vec!["arm".into()],
+                    influences: vec![vec![(0, 1.0)]; skin_vertices],
+                    strength: Vec::new(),
+                }),
+                ..Default::default()
+            },
+        ],
+        ..Default::default()
+    };
+    let base = scene.instantiate(Path::new(".")).unwrap();
+    assert_eq!(base.muscles()[1].binding.len(), skin_vertices);
+    agree_on_scene("bound skin", &scene, &base, 6, false);
 }
