@@ -23,23 +23,25 @@
 //! ```
 //! Paths of mesh files are relative to the scene file.
 
+mod binding;
 mod builtin;
+mod meshes;
 
+pub use binding::SkinBindingSpec;
 pub use builtin::{BUILTIN_SCENES, builtin};
 
 use crate::animation::{Curve, TransformTrack};
 use crate::error::SceneError;
+use crate::mesh::SurfaceMesh;
 use crate::mesh::primitives::MeshGenerator;
-use crate::mesh::{LoadOptions, SurfaceMesh, load_mesh};
-use crate::muscle::{
-    AttachmentDesc, MuscleDesc, MuscleParams, Roots, SkinBindingDesc, TargetRef, VertexMaps,
-};
+use crate::muscle::{AttachmentDesc, MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
 use crate::sensor::{ActivationLayer, ActivationRig, SensorSpec};
 use crate::skeleton::Skeleton;
 use crate::solver::{Solver, SolverSettings};
 use glam::Vec3;
+use meshes::{bone_mesh, muscle_mesh};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A whole scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -175,21 +177,6 @@ pub struct MuscleSpec {
     /// skinned position (a skin over the muscles); `None`: unbound.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub binding: Option<SkinBindingSpec>,
-}
-
-/// A skin binding in a scene: per surface vertex, up to four bones (named
-/// through `bones`) and weights, as a glTF skin's `JOINTS_0`/`WEIGHTS_0`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct SkinBindingSpec {
-    /// The bones the influences index, by name.
-    pub bones: Vec<String>,
-    /// Per surface vertex: `(index into bones, weight)` pairs, at most
-    /// four, weights ≥ 0 summing to 1; an empty list leaves it unbound.
-    pub influences: Vec<Vec<(u16, f32)>>,
-    /// Per surface vertex, the binding's strength (its compliance is
-    /// divided by it; 0 unbinds). Empty: 1 everywhere. Unitless, ≥ 0.
-    pub strength: Vec<f32>,
 }
 
 impl Scene {
@@ -362,38 +349,8 @@ impl Scene {
                 .binding
                 .as_ref()
                 .map(|spec| {
-                    let bones = spec
-                        .bones
-                        .iter()
-                        .enumerate()
-                        .map(|(k, b)| {
-                            bone_index(format!("muscle '{}' binding bone {k}", m.name), b)
-                        })
-                        .collect::<Result<Vec<_>, _>>()?;
-                    let influences = spec
-                        .influences
-                        .iter()
-                        .enumerate()
-                        .map(|(v, list)| {
-                            list.iter()
-                                .map(|&(k, w)| {
-                                    let bone = bones.get(k as usize).ok_or_else(|| {
-                                        SceneError::Invalid {
-                                            context: format!(
-                                                "muscle '{}' binding vertex {v}",
-                                                m.name
-                                            ),
-                                            reason: format!("bone {k} of {} named", bones.len()),
-                                        }
-                                    })?;
-                                    Ok((*bone, w))
-                                })
-                                .collect::<Result<Vec<_>, SceneError>>()
-                        })
-                        .collect::<Result<Vec<_>, _>>()?;
-                    Ok::<_, SceneError>(SkinBindingDesc {
-                        influences,
-                        strength: spec.strength.clone(),
+                    spec.resolve(&m.name, |k, b| {
+                        bone_index(format!("muscle '{}' binding bone {k}", m.name), b)
                     })
                 })
                 .transpose()?;
@@ -442,81 +399,6 @@ impl Scene {
         }
         Ok(())
     }
-}
-
-fn resolve(base_dir: &Path, file: &str) -> PathBuf {
-    let p = Path::new(file);
-    if p.is_absolute() {
-        p.to_path_buf()
-    } else {
-        base_dir.join(p)
-    }
-}
-
-fn bone_mesh(name: &str, shape: &BoneShape, base_dir: &Path) -> Result<SurfaceMesh, SceneError> {
-    Ok(match shape {
-        BoneShape::Mesh { file, scale } => load_mesh(
-            &resolve(base_dir, file),
-            &LoadOptions {
-                scale: *scale,
-                ..Default::default()
-            },
-        )?,
-        BoneShape::Plane {
-            center,
-            normal,
-            size,
-        } => {
-            let n = normal.try_normalize().ok_or_else(|| SceneError::Invalid {
-                context: format!("bone '{name}' plane"),
-                reason: "normal has zero length".into(),
-            })?;
-            if size.is_nan() || *size <= 0.0 {
-                return Err(SceneError::Invalid {
-                    context: format!("bone '{name}' plane"),
-                    reason: format!("size {size} must be > 0"),
-                });
-            }
-            let (u, v) = n.any_orthonormal_pair();
-            let h = 0.5 * size;
-            let corners = vec![
-                *center - h * u - h * v,
-                *center + h * u - h * v,
-                *center + h * u + h * v,
-                *center - h * u + h * v,
-            ];
-            // Counter-clockwise seen from the normal side.
-            let quad = if u.cross(v).dot(n) > 0.0 {
-                vec![0, 1, 2, 3]
-            } else {
-                vec![3, 2, 1, 0]
-            };
-            SurfaceMesh::new(format!("<plane {name}>"), corners, &[quad])?
-        }
-        BoneShape::Generated(g) => g.build(name)?,
-    })
-}
-
-fn muscle_mesh(
-    name: &str,
-    source: &MeshSource,
-    base_dir: &Path,
-) -> Result<SurfaceMesh, SceneError> {
-    Ok(match source {
-        MeshSource::File {
-            path,
-            triangulate,
-            scale,
-        } => load_mesh(
-            &resolve(base_dir, path),
-            &LoadOptions {
-                triangulate: *triangulate,
-                scale: *scale,
-                ..Default::default()
-            },
-        )?,
-        MeshSource::Generator(g) => g.build(name)?,
-    })
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@ mod pipeline;
 mod scene;
 mod similarity;
 mod skin;
+mod spread;
 
 pub use geometry::{FittedGeometry, SkinVolume};
 pub use inside::{PullInside, PullReport};
