@@ -17,7 +17,7 @@
 //! }
 //! ```
 
-use crate::components::SinewBone;
+use crate::components::{SinewBone, SkeletonDriver, SkeletonFrames};
 use bevy::animation::{AnimationPlayer, graph::AnimationNodeIndex};
 use bevy::asset::AssetPath;
 use bevy::ecs::system::SystemParam;
@@ -116,6 +116,83 @@ impl<'w, 's> GltfCharacters<'w, 's> {
     /// The commands of the system this parameter belongs to.
     pub fn commands(&mut self) -> &mut Commands<'w, 's> {
         &mut self.commands
+    }
+}
+
+/// Puts the [`SinewSceneRoot`](crate::scene::SinewSceneRoot) it is on onto
+/// a spawned glTF character (this entity: the one with the glTF scene's
+/// `WorldAssetRoot`): once both are spawned, every scene bone that follows a
+/// skeleton body named like one of the character's nodes becomes a child of
+/// that node at the identity, so the character's animation
+/// (`bevy_animation`) moves it; bones whose body the character lacks stay
+/// with the scene's own skeleton (a warning names them). Made for scenes
+/// whose skeleton is the character's, as `sinew fit --out` writes them.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OnCharacter(pub Entity);
+
+/// Inserted once [`OnCharacter`] has put its scene's bones on the joints.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlacedOnCharacter;
+
+/// Places every spawned scene with an [`OnCharacter`] whose character has
+/// spawned (see there).
+pub(crate) fn place_scenes_on_characters(
+    mut commands: Commands,
+    mut roots: Query<
+        (
+            Entity,
+            &OnCharacter,
+            &crate::scene::SpawnedScene,
+            Option<&mut SkeletonDriver>,
+        ),
+        Without<PlacedOnCharacter>,
+    >,
+    children: Query<&Children>,
+    names: Query<&Name>,
+) {
+    for (root, on, spawned, driver) in &mut roots {
+        if !spawned.done {
+            continue;
+        }
+        let joints: std::collections::HashMap<&str, Entity> = children
+            .iter_descendants(on.0)
+            .filter_map(|e| names.get(e).ok().map(|n| (n.as_str(), e)))
+            .collect();
+        if joints.is_empty() {
+            // The character has not spawned yet.
+            continue;
+        }
+        if let Some(mut driver) = driver {
+            let bodies = driver.rig.body_names().to_vec();
+            let mut missing = Vec::new();
+            driver
+                .bones
+                .retain(|&(bone, body)| match joints.get(bodies[body].as_str()) {
+                    Some(&joint) => {
+                        commands
+                            .entity(bone)
+                            .insert((ChildOf(joint), Transform::IDENTITY));
+                        false
+                    }
+                    None => {
+                        missing.push(bodies[body].clone());
+                        true
+                    }
+                });
+            if !missing.is_empty() {
+                warn!(
+                    "sinew: the character {} has no node named {}: those bones keep the scene's skeleton",
+                    on.0,
+                    missing.join(", ")
+                );
+            }
+            if driver.bones.is_empty() {
+                commands
+                    .entity(root)
+                    .remove::<(SkeletonDriver, SkeletonFrames)>();
+            }
+        }
+        commands.entity(root).insert(PlacedOnCharacter);
     }
 }
 

@@ -119,7 +119,9 @@ pub mod prelude {
     #[cfg(feature = "render")]
     pub use crate::capture::SinewScreenshotPlugin;
     #[cfg(feature = "gltf")]
-    pub use crate::character::{CharacterJointError, GltfCharacters};
+    pub use crate::character::{
+        CharacterJointError, GltfCharacters, OnCharacter, PlacedOnCharacter,
+    };
     pub use crate::components::{
         ActivationCurve, BonePose, BoneTarget, BoneTrack, Compliance, ConstraintSet,
         ConstraintSets, FiberMode, Muscle, MuscleSnapshot, MuscleState, SinewBone, SkeletonDriver,
@@ -499,6 +501,13 @@ impl Plugin for SinewPlugin {
                 scene::spawn_scenes,
             )
                 .chain()
+                .before(SinewSystems::AnimateBones),
+        );
+        #[cfg(feature = "gltf")]
+        app.add_systems(
+            SinewPrepareSchedule,
+            character::place_scenes_on_characters
+                .after(scene::spawn_scenes)
                 .before(SinewSystems::AnimateBones),
         );
         scene::register(app);

@@ -251,3 +251,101 @@ fn skin_xray_blends_the_skinned_materials_and_gives_them_back() {
         "its own look back"
     );
 }
+
+/// A scene whose skeleton is the character's (as `sinew fit --out` writes
+/// them) put on the spawned glTF character: its bones become children of
+/// the joints of their bodies' names, and `bevy_animation` moves them.
+#[test]
+fn a_scene_on_a_character_follows_its_animated_joints() {
+    use sinew_bevy::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
+    use sinew_core::character::ClipPlayback;
+    use sinew_core::scene::{BoneSpec, Scene};
+    use std::sync::Arc;
+
+    let dir = std::env::temp_dir().join(format!("sinew_on_character_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let arm = two_bone_arm(0.3, 0.04, FLEX);
+    glb::write(&arm, &dir.join("arm.glb")).unwrap();
+    // The character's skeleton, still (the glTF animation moves it).
+    let bone = |name: &str, body: &str| BoneSpec {
+        name: name.into(),
+        body: Some(body.into()),
+        ..Default::default()
+    };
+    let scene = Scene {
+        name: "arm bones".into(),
+        skeleton: Some(arm.skeleton(None, &ClipPlayback::default())),
+        bones: vec![
+            bone("humerus", "upper_arm"),
+            bone("ulna", "forearm"),
+            bone("elsewhere", "shoulder"),
+        ],
+        ..Default::default()
+    };
+    let built = Arc::new(SinewScene::build(scene, &dir).unwrap());
+
+    let mut app = gltf_app(&dir);
+    let gltf = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("arm.glb"));
+    let character = app
+        .world_mut()
+        .spawn(WorldAssetRoot(gltf))
+        .observe(
+            |ready: On<WorldInstanceReady>, mut gltf: GltfCharacters| -> Result {
+                gltf.play_looped(
+                    ready.entity,
+                    GltfAssetLabel::Animation(0).from_asset("arm.glb"),
+                )?;
+                Ok(())
+            },
+        )
+        .id();
+    let root = app
+        .world_mut()
+        .spawn((SinewSceneRoot::Built(built), OnCharacter(character)))
+        .id();
+    let mut placed = false;
+    for _ in 0..600 {
+        app.update();
+        if app.world().get::<PlacedOnCharacter>(root).is_some() {
+            placed = true;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(placed, "the scene was never placed on the character");
+    assert!(
+        app.world().get::<SkeletonDriver>(root).is_none(),
+        "every bone follows a joint: the scene's skeleton is dropped"
+    );
+    let bones = app.world().get::<SpawnedScene>(root).unwrap().bones.clone();
+    let joint = |app: &mut App, name: &str| {
+        app.world_mut()
+            .query::<(Entity, &Name)>()
+            .iter(app.world())
+            .find(|(_, n)| n.as_str() == name)
+            .map(|(e, _)| e)
+            .unwrap()
+    };
+    let forearm = joint(&mut app, "forearm");
+    let mut turned = 0.0f32;
+    for _ in 0..70 {
+        app.update();
+        let at = |e: Entity| app.world().get::<GlobalTransform>(e).unwrap().affine();
+        let pose = app.world().get::<BonePose>(bones[1]).unwrap().current;
+        let (joint_at, bone_at) = (at(forearm), at(bones[1]));
+        let off = (joint_at.matrix3 - pose.matrix3)
+            .abs()
+            .to_cols_array()
+            .into_iter()
+            .fold(0.0, f32::max)
+            .max((joint_at.translation - pose.translation).length())
+            .max((joint_at.translation - bone_at.translation).length());
+        assert!(off < 1e-6, "the ulna is {off} off the forearm joint");
+        let (_, rotation, _) = joint_at.to_scale_rotation_translation();
+        turned = turned.max(rotation.angle_between(Quat::IDENTITY));
+    }
+    assert!(turned > 0.8 * FLEX, "the elbow flexed {turned} rad");
+}
