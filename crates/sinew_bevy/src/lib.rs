@@ -503,6 +503,7 @@ impl Plugin for SinewPlugin {
                 .chain()
                 .before(SinewSystems::AnimateBones),
         );
+        scene::register(app);
         #[cfg(feature = "gltf")]
         app.add_systems(
             SinewPrepareSchedule,
@@ -510,7 +511,6 @@ impl Plugin for SinewPlugin {
                 .after(scene::spawn_scenes)
                 .before(SinewSystems::AnimateBones),
         );
-        scene::register(app);
         #[cfg(feature = "render")]
         render::register(app);
     }

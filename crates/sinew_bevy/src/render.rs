@@ -53,7 +53,12 @@ pub(crate) fn register(app: &mut App) {
         )
         .add_systems(
             crate::SinewPrepareSchedule,
-            targets_from_meshes.before(SinewSystems::AnimateBones),
+            // Before builds start: a muscle that targets the mesh finds
+            // the bone's target (unordered, the result hung on the order
+            // the executor happened to pick).
+            targets_from_meshes
+                .before(crate::build::start_builds)
+                .before(SinewSystems::AnimateBones),
         );
 }
 
