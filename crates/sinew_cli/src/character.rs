@@ -2,14 +2,12 @@
 //! `fit`: an anatomy scene fitted to a skinned character.
 
 use sinew_core::Solver;
-use sinew_core::character::fit::{
-    AnatomyFit, FitOptions, FittedAnatomy, FittedGeometry, RigMap, SkinLayer, SkinVolume,
-    fit_anatomy,
-};
+use sinew_core::character::fit::{FitOptions, FittedAnatomy, RigMap, SkinLayer, fit_anatomy};
 use sinew_core::character::makehuman::{self, MakeHumanOptions};
 use sinew_core::character::{ClipPlayback, SkinnedCharacter, glb};
 use sinew_core::glam::Vec3;
 use sinew_core::mesh::ObjObjects;
+use sinew_core::scene::Scene;
 use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -45,12 +43,17 @@ pub fn run(dir: &Path, args: &MakeHumanArgs) -> Result<ExitCode, Box<dyn Error>>
 fn write_scene(
     args: &FitArgs,
     out: &Path,
-    fit: &AnatomyFit,
+    anatomy: &Scene,
     solver: &Solver,
-    geometry: &FittedGeometry,
     character: &SkinnedCharacter,
-    skin: &SkinVolume,
+    fitted_anatomy: &FittedAnatomy,
 ) -> Result<(), Box<dyn Error>> {
+    let FittedAnatomy {
+        fit,
+        geometry,
+        skin,
+        ..
+    } = fitted_anatomy;
     let clip = match &args.clip {
         Some(name) => Some(
             character
@@ -77,13 +80,9 @@ fn write_scene(
         lead_in: args.lead_in,
         until: args.seconds,
     };
-    let (anatomy, _) = crate::commands::load_scene(&args.scene)?;
-    let mut fitted = fit.scene(&anatomy, solver, geometry, character, clip, &playback)?;
+    let mut fitted = fit.scene(anatomy, solver, geometry, character, clip, &playback)?;
     if !args.no_skin {
         fitted.add_skin(character, &SkinLayer::default());
-    }
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
     }
     fitted.save(out)?;
     let built = fitted
@@ -92,8 +91,7 @@ fn write_scene(
     let anatomy_muscles = built.muscles().iter().filter(|m| m.binding.is_empty());
     let (outside, all) = anatomy_muscles.fold((0, 0), |(o, a), m| {
         let points = m.surface_positions();
-        let n = points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
-        (o + n, a + points.len())
+        (o + skin.count_outside(points), a + points.len())
     });
     println!(
         "wrote {} ({} meshes, {} frames, clip {}); built back: muscle vertices outside the skin at rest {outside} of {all} ({:.2} %)",
@@ -178,7 +176,7 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         eprintln!("note: {}: {line}", args.character.display());
     }
     let character = read.character;
-    let (_, solver) = crate::commands::load_solver(&args.scene)?;
+    let (anatomy, solver) = crate::commands::load_solver(&args.scene)?;
     let map = match &args.map {
         Some(path) => RigMap::load(path)?,
         None => RigMap::game_engine(),
@@ -187,14 +185,15 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         pull: !args.no_pull,
         ..FitOptions::default()
     };
+    let fitted = fit_anatomy(&character, &solver, &map, &options)
+        .map_err(|e| format!("{}: {e}", args.scene))?;
     let FittedAnatomy {
         fit,
         geometry,
         skin,
         settled,
         pulled,
-    } = fit_anatomy(&character, &solver, &map, &options)
-        .map_err(|e| format!("{}: {e}", args.scene))?;
+    } = &fitted;
     for (body, dz) in settled {
         println!(
             "{body}: moved {:+.0} mm front to back to sit inside the skin",
@@ -225,7 +224,7 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
             r.folded
         );
     }
-    let outside = |points: &[Vec3]| points.iter().filter(|&&p| skin.outside_by(p) > 0.0).count();
+    let outside = |points: &[Vec3]| skin.count_outside(points);
     let mut per_muscle: Vec<(f32, &str, usize, usize)> = geometry
         .muscles
         .iter()
@@ -300,7 +299,7 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         println!("wrote {}", path.display());
     }
     if let Some(out) = &args.out {
-        write_scene(args, out, &fit, &solver, &geometry, &character, &skin)?;
+        write_scene(args, out, &anatomy, &solver, &character, &fitted)?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -92,45 +92,23 @@ pub(crate) fn begin_substep(
 ) {
     let mut watch = Stopwatch::new(ctx.settings.timers);
     for (mut state, _) in &mut muscles {
-        let state = &mut *state;
-        // A bone that goes within the step keeps its last pose (its
-        // attachments are dropped on the next step).
         let MuscleState {
-            bone_poses,
+            muscle,
             attached,
+            bone_poses,
+            bound_bones,
+            bind_poses,
             ..
-        } = state;
-        bone_poses.resize(attached.len(), Affine3A::IDENTITY);
-        for (cached, &(_, bone)) in bone_poses.iter_mut().zip(attached.iter()) {
-            if let Some(p) = bone.and_then(|b| poses.get(b).ok()) {
-                *cached = p.substep;
-            }
-        }
-        let cached = &state.bone_poses;
+        } = &mut *state;
+        cache_substep_poses(bone_poses, attached.iter().map(|&(_, bone)| bone), &poses);
+        // A skin binding numbers its bones apart from the attachments.
+        cache_substep_poses(bind_poses, bound_bones.iter().copied().map(Some), &poses);
         let pose = |b: Option<usize>| {
-            b.and_then(|b| cached.get(b).copied())
+            b.and_then(|b| bone_poses.get(b).copied())
                 .unwrap_or(Affine3A::IDENTITY)
         };
-        pipeline::update_attachment_goals(&mut state.muscle, &pose);
-        if !state.muscle.binding.is_empty() {
-            // Bind goals from the binding's own bones (the attachments'
-            // indices are not theirs).
-            let MuscleState {
-                bind_poses,
-                bound_bones,
-                ..
-            } = state;
-            bind_poses.resize(bound_bones.len(), Affine3A::IDENTITY);
-            for (cached, &bone) in bind_poses.iter_mut().zip(bound_bones.iter()) {
-                if let Ok(p) = poses.get(bone) {
-                    *cached = p.substep;
-                }
-            }
-            let cached = &state.bind_poses;
-            sinew_core::muscle::update_bind_goals(&mut state.muscle, &|b| {
-                cached.get(b).copied().unwrap_or(Affine3A::IDENTITY)
-            });
-        }
+        let bind_pose = |b: usize| bind_poses.get(b).copied().unwrap_or(Affine3A::IDENTITY);
+        pipeline::update_attachment_goals(muscle, &pose, &bind_pose);
     }
     watch.lap(&mut timings.step.update_targets);
     let workers = &mut *workers;
@@ -139,6 +117,22 @@ pub(crate) fn begin_substep(
         passes::begin_substep_all(&workers.pool, muscles, &ctx.substep);
     });
     watch.lap(&mut timings.step.integrate);
+}
+
+/// Refreshes `cache` with the substep pose of each of `bones` (`None`: the
+/// world); a bone that goes within the step keeps its last pose (its
+/// attachments are dropped on the next step).
+fn cache_substep_poses(
+    cache: &mut Vec<Affine3A>,
+    bones: impl ExactSizeIterator<Item = Option<Entity>>,
+    poses: &Query<&BonePose>,
+) {
+    cache.resize(bones.len(), Affine3A::IDENTITY);
+    for (cached, bone) in cache.iter_mut().zip(bones) {
+        if let Some(p) = bone.and_then(|b| poses.get(b).ok()) {
+            *cached = p.substep;
+        }
+    }
 }
 
 /// Runs the iteration schedule once per iteration.

@@ -15,7 +15,6 @@ pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use verdict::{Thresholds, Verdict};
 
 use crate::closest::{TargetSource, TargetSurface};
-use crate::muscle::TargetRef;
 use crate::solver::Solver;
 use glam::Vec3;
 
@@ -157,16 +156,11 @@ fn skins(solver: &Solver) -> impl Iterator<Item = (usize, &crate::muscle::Muscle
 pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
     skins(solver)
         .map(|(i, m)| {
-            let targets: Vec<_> = solver
-                .targets()
+            // The solver's own resolution of the body's targets.
+            let targets: Vec<&TargetSurface> = solver.workspaces()[i]
+                .target_ids
                 .iter()
-                .filter(|t| {
-                    m.targets.iter().any(|r| match (*r, t.source) {
-                        (TargetRef::Muscle(o), TargetSource::Muscle(s)) => o == s,
-                        (TargetRef::Bone(b), TargetSource::Bone(s)) => b == s,
-                        _ => false,
-                    })
-                })
+                .map(|t| &solver.targets()[t.index()])
                 .collect();
             let inside = m.x[..m.surface_count]
                 .iter()

@@ -63,8 +63,8 @@ impl SkinnedCharacter {
             })
             .collect();
         let mut motion = Vec::new();
+        let duration = clip.map_or(0.0, JointClip::duration);
         for channel in clip.iter().flat_map(|c| c.channels.iter()) {
-            let duration = clip.map_or(0.0, JointClip::duration);
             let first = *channel.times.first().unwrap_or(&0.0);
             let mut keys: Vec<(f32, Vec3)> = vec![(0.0, Vec3::ZERO)];
             let mut start = playback.lead_in.max(0.0);

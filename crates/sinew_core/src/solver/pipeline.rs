@@ -216,8 +216,14 @@ pub fn plan_kind(method: SolverMethod) -> Option<(PlanKind, f32)> {
 
 /// Moves every attachment goal of `m` to its bone's pose at the substep's
 /// end (`pose(bone)`; `None`: the world), and every Bind goal to its
-/// vertex's skinned position for those poses.
-pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> Affine3A) {
+/// vertex's skinned position for the poses of the binding's bones
+/// (`bind_pose(bone)`: a host that numbers a muscle's attachment bones on
+/// their own, as the Bevy plug-in does, numbers the binding's apart).
+pub fn update_attachment_goals(
+    m: &mut Muscle,
+    pose: &impl Fn(Option<usize>) -> Affine3A,
+    bind_pose: &impl Fn(usize) -> Affine3A,
+) {
     let mut k = 0;
     for (i, a) in m.attachments.iter().enumerate() {
         let t = pose(a.bone);
@@ -227,7 +233,7 @@ pub fn update_attachment_goals(m: &mut Muscle, pose: &impl Fn(Option<usize>) -> 
             k += 1;
         }
     }
-    crate::muscle::update_bind_goals(m, &|bone| pose(Some(bone)));
+    crate::muscle::update_bind_goals(m, bind_pose);
 }
 
 /// Explicit Euler prediction with gravity and damping: over a substep of

@@ -146,7 +146,7 @@ impl Solver {
         let poses = &self.substep_poses;
         let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
         for m in &mut self.muscles {
-            pipeline::update_attachment_goals(m, &pose);
+            pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
         }
         let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
         self.pairs.with(pairs, |muscles| {

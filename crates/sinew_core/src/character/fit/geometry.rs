@@ -223,6 +223,11 @@ impl SkinVolume {
             .map_or(f32::INFINITY, |hit| hit.signed_distance)
     }
 
+    /// How many of `points` are outside the skin.
+    pub fn count_outside(&self, points: &[Vec3]) -> usize {
+        points.iter().filter(|&&p| self.outside_by(p) > 0.0).count()
+    }
+
     /// The skin point closest to `p`, with its outward normal (`None` for
     /// a skin without triangles).
     pub fn closest(&self, p: Vec3) -> Option<ClosestHit> {

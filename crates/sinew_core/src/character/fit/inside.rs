@@ -91,10 +91,8 @@ impl SkinVolume {
             .map(|t| triangle_normal(points, t))
             .collect();
         let start = points.to_vec();
-        let outside =
-            |points: &[Vec3]| points.iter().filter(|&&p| self.outside_by(p) > 0.0).count();
         let mut report = PullReport {
-            outside_before: outside(points),
+            outside_before: self.count_outside(points),
             ..PullReport::default()
         };
         if report.outside_before > 0 {
@@ -136,7 +134,7 @@ impl SkinVolume {
             }
             spread_moves(points, &neighbours, options, pull);
         }
-        report.outside_after = outside(points);
+        report.outside_after = self.count_outside(points);
         report.largest_move = points
             .iter()
             .zip(&start)

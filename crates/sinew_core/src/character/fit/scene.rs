@@ -21,13 +21,16 @@ pub struct FittedScene {
 }
 
 impl FittedScene {
-    /// Writes the scene to `path` and its meshes beside it (their folder
-    /// created); errors name the file.
+    /// Writes the scene to `path` and its meshes beside it (the folders
+    /// created); errors name the file or folder.
     pub fn save(&self, path: &std::path::Path) -> Result<(), CharacterError> {
         let io = |file: std::path::PathBuf| {
             move |source: std::io::Error| CharacterError::Io { file, source }
         };
         let dir = path.parent().unwrap_or(std::path::Path::new(""));
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(io(dir.to_path_buf()))?;
+        }
         for (file, text) in &self.meshes {
             let file = dir.join(file);
             if let Some(folder) = file.parent() {
