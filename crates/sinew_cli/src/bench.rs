@@ -1,6 +1,6 @@
 //! `sinew bench`: per-block ms/frame, medians of several runs.
 
-use crate::commands::load_solver;
+use crate::commands::{load_scene, truncate};
 use sinew_core::glam::Vec3;
 use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings, SweepSchedule};
 use std::error::Error;
@@ -143,14 +143,43 @@ pub fn time_frames(solver: &mut Solver, frames: u32) -> ([f64; 7], f64) {
     (blocks.map(|d| d.as_secs_f64() * 1e3 / frames as f64), wall)
 }
 
+/// Which bodies of the scene a run steps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Bodies {
+    /// Everything.
+    All,
+    /// The muscles alone: surface layers (a skin) left out.
+    WithoutLayers,
+}
+
+/// The names of the scene's surface layers (skin, fat: muscles whose
+/// parameters are [`sinew_core::muscle::MuscleParams::is_surface_layer`]).
+fn surface_layers(scene: &sinew_core::scene::Scene) -> Vec<String> {
+    scene
+        .muscles
+        .iter()
+        .filter(|m| m.params.is_surface_layer())
+        .map(|m| m.name.clone())
+        .collect()
+}
+
 /// One run: per-block ms/frame and wall ms/frame.
 fn run_once(
     scene: &str,
     frames: u32,
     overrides: Overrides,
     timers: bool,
+    bodies: Bodies,
 ) -> Result<RunResult, Box<dyn Error>> {
-    let (_, mut solver) = load_solver(scene)?;
+    let (mut spec, base) = load_scene(scene)?;
+    if bodies == Bodies::WithoutLayers {
+        let layers = surface_layers(&spec);
+        spec.muscles.retain(|m| !layers.contains(&m.name));
+        for m in &mut spec.muscles {
+            m.targets.retain(|t| !layers.contains(t));
+        }
+    }
+    let mut solver = spec.instantiate(&base)?;
     overrides.apply(&mut solver);
     solver.settings.timers = timers;
     // Warm-up frame links targets and faults pages in.
@@ -235,8 +264,12 @@ pub fn run(
     let mut untimed = Vec::new();
     let (mut constraints, mut iters, mut reads_per_frame, mut threads) = (0, 0, 0, 1);
     let mut method = SolverMethod::Sequential;
+    // A scene with surface layers is also run without them, interleaved:
+    // the difference is the layers' own line.
+    let layers = surface_layers(&load_scene(scene)?.0);
+    let mut muscles_only: Vec<Vec<f64>> = vec![Vec::new(); 8];
     for _ in 0..runs {
-        let r = run_once(scene, frames, overrides, true)?;
+        let r = run_once(scene, frames, overrides, true, Bodies::All)?;
         for (k, v) in r.blocks.iter().enumerate() {
             blocks[k].push(*v);
         }
@@ -245,7 +278,13 @@ pub fn run(
             (r.constraints, r.iterations, r.clock_reads, r.threads);
         method = r.method;
         if timer_overhead {
-            untimed.push(run_once(scene, frames, overrides, false)?.wall);
+            untimed.push(run_once(scene, frames, overrides, false, Bodies::All)?.wall);
+        }
+        if !layers.is_empty() {
+            let r = run_once(scene, frames, overrides, true, Bodies::WithoutLayers)?;
+            for (k, v) in r.blocks.iter().chain([&r.wall]).enumerate() {
+                muscles_only[k].push(*v);
+            }
         }
     }
     let wall = median(walls);
@@ -258,13 +297,47 @@ pub fn run(
             n => format!("{n} threads"),
         }
     );
-    println!("{:<16}{:>12}{:>8}", "block", "ms/frame", "share");
     let medians: Vec<f64> = blocks.into_iter().map(median).collect();
     let sum: f64 = medians.iter().sum();
-    for (name, ms) in StepTimings::NAMES.iter().zip(&medians) {
-        println!("{name:<16}{ms:>12.4}{:>7.1}%", 100.0 * ms / sum.max(1e-12));
+    if layers.is_empty() {
+        println!("{:<16}{:>12}{:>8}", "block", "ms/frame", "share");
+        for (name, ms) in StepTimings::NAMES.iter().zip(&medians) {
+            println!("{name:<16}{ms:>12.4}{:>7.1}%", 100.0 * ms / sum.max(1e-12));
+        }
+        println!("{:<16}{:>12.4}", "blocks total", sum);
+    } else {
+        // Per block: everything, the muscles alone, and the difference.
+        let alone: Vec<f64> = muscles_only.into_iter().map(median).collect();
+        println!(
+            "{:<16}{:>12}{:>8}{:>12}{:>12}",
+            "block",
+            "ms/frame",
+            "share",
+            "muscles",
+            truncate(&layers.join("+"), 11)
+        );
+        for (k, name) in StepTimings::NAMES.iter().enumerate() {
+            let (ms, m) = (medians[k], alone[k]);
+            println!(
+                "{name:<16}{ms:>12.4}{:>7.1}%{m:>12.4}{:>12.4}",
+                100.0 * ms / sum.max(1e-12),
+                ms - m
+            );
+        }
+        let m: f64 = alone[..7].iter().sum();
+        println!(
+            "{:<16}{sum:>12.4}{:>8}{m:>12.4}{:>12.4}",
+            "blocks total",
+            "",
+            sum - m
+        );
+        println!(
+            "surface layers ({}): {:.4} ms/frame of the wall time (muscles alone: {:.4}, interleaved runs without them)",
+            layers.join(", "),
+            wall - alone[7],
+            alone[7]
+        );
     }
-    println!("{:<16}{:>12.4}", "blocks total", sum);
     println!("{:<16}{:>12.4}   ({:.0} fps)", "wall", wall, 1e3 / wall);
     let ns = wall * 1e6 / (constraints * iters).max(1) as f64;
     let bare = bare_kernel_ns(constraints.max(1), iters.max(1));

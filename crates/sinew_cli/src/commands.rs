@@ -67,7 +67,8 @@ pub fn constraint_table(solver: &Solver) -> String {
     out
 }
 
-fn truncate(s: &str, n: usize) -> String {
+/// `s` cut to its first `n` characters.
+pub fn truncate(s: &str, n: usize) -> String {
     s.chars().take(n).collect()
 }
 

@@ -173,6 +173,8 @@ fn a_skin_has_only_surface_distance_and_sliding_constraints() {
         .sum();
     assert!((mass - 2.2 * area).abs() < 1e-3 * mass, "{mass} vs {area}");
     assert_eq!(skin.params.mass, MassMode::AreaDensity(2.2));
+    assert!(skin.params.is_surface_layer());
+    assert!(!solver.muscles()[0].params.is_surface_layer(), "the oval");
 }
 
 #[test]

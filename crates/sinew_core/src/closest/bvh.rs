@@ -154,6 +154,11 @@ impl TriangleBvh {
         }
     }
 
+    /// The box around every triangle (`None` when there are none).
+    pub fn root_box(&self) -> Option<(Vec3A, Vec3A)> {
+        self.nodes.first().map(|n| n.corners())
+    }
+
     /// Distance from `query` to the root box grown by `slack`: a lower bound
     /// on the distance to every triangle (`f32::MAX` for an empty tree).
     pub fn lower_bound(&self, query: Vec3, slack: f32) -> f32 {

@@ -434,6 +434,24 @@ impl TargetSurface {
         self.bvh.lower_bound(q, self.slack)
     }
 
+    /// A world-space box around the target as it is now (its local box,
+    /// grown by the refit slack, moved by its transform), or `None` when
+    /// it has no triangles: a point outside it by `d` is at least `d` from
+    /// every triangle.
+    pub fn world_box(&self) -> Option<(Vec3A, Vec3A)> {
+        let (lo, hi) = self.bvh.root_box()?;
+        let (lo, hi) = (lo - Vec3A::splat(self.slack), hi + Vec3A::splat(self.slack));
+        if self.identity {
+            return Some((lo, hi));
+        }
+        // The box of the moved box: centre moved, half-size through |R|.
+        let (centre, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+        let m = self.transform.matrix3;
+        let abs = Mat3A::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs());
+        let (centre, half) = (self.transform.transform_point3a(centre), abs * half);
+        Some((centre - half, centre + half))
+    }
+
     /// [`TargetSurface::lower_bound`] for a point already in the local frame.
     pub fn lower_bound_local(&self, local: Vec3) -> f32 {
         self.bvh.lower_bound(local, self.slack)

@@ -8,6 +8,11 @@
 //! Contact mode: C ≥ 0 only (collision), λ clamped to ≥ 0
 //! ```
 //!
+//! A surface layer in Contact mode (a skin held by its binding) walks to
+//! its closest points in the first iteration of a substep only
+//! ([`SlidingBatch::walk_first_only`]); later iterations re-project onto
+//! the triangles found.
+//!
 //! Beyond the thesis: a vertex found inside a *rigid* target (a bone) that it
 //! was outside of at rest is first put back on the surface with a plain,
 //! non-compliant position projection (bones do not give way), then the
@@ -64,6 +69,22 @@ pub struct SlidingBatch {
     /// Generalised inverse mass of `point` on its target (0 on a bone),
     /// written with `point`. Units: 1/kg.
     pub target_w: Vec<f32>,
+    /// Walk to the closest points in the first iteration of a substep
+    /// only; later iterations re-project onto the triangles found (a
+    /// surface layer in [`SlidingMode::Contact`]: a skin over a body, held
+    /// by its binding, needs no sliding from triangle to triangle within a
+    /// substep). Otherwise as
+    /// [`crate::solver::SolverSettings::walk_every_iteration`] says.
+    pub walk_first_only: bool,
+    /// The target slots each constraint may slide on (those with a finite
+    /// rest gap), ascending: constraint `i`'s are
+    /// `candidates[candidate_start[i]..candidate_start[i + 1]]`. Closest
+    /// data visits only these (a skin over a body has hundreds of targets
+    /// and a handful within reach of each vertex).
+    pub candidates: Vec<u32>,
+    /// Where each constraint's run of `candidates` starts; one more entry
+    /// than constraints.
+    pub candidate_start: Vec<u32>,
     /// Whether the vertex connects at all: some target lies within reach
     /// ([`crate::muscle::MuscleParams::contact_reach`] for muscles, any gap
     /// for bones). A vertex out of reach keeps its constraints, switched off.
@@ -71,6 +92,18 @@ pub struct SlidingBatch {
 }
 
 impl SlidingBatch {
+    /// Rebuilds [`Self::candidates`] from the rest gaps.
+    pub fn index_candidates(&mut self) {
+        self.candidates.clear();
+        self.candidate_start.clear();
+        self.candidate_start.push(0);
+        for row in self.rest_gap.chunks(self.targets.max(1)) {
+            let slots = row.iter().enumerate().filter(|(_, g)| g.is_finite());
+            self.candidates.extend(slots.map(|(slot, _)| slot as u32));
+            self.candidate_start.push(self.candidates.len() as u32);
+        }
+    }
+
     /// Number of constraints.
     pub fn len(&self) -> usize {
         self.particle.len()

@@ -172,6 +172,12 @@ impl MuscleParams {
         }
     }
 
+    /// Whether these are a surface layer's parameters (skin, fat, fascia:
+    /// mass per area, [`Self::surface_layer`]) rather than a muscle's.
+    pub fn is_surface_layer(&self) -> bool {
+        matches!(self.mass, MassMode::AreaDensity(_))
+    }
+
     /// Rejects NaN, negative or out-of-range values with a typed error.
     pub fn validate(&self, muscle: &str) -> Result<(), BuildError> {
         let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {

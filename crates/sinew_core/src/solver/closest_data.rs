@@ -11,7 +11,7 @@ use super::workspace::MuscleWorkspace;
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use crate::constraints::{ParticleId, TargetId, TargetSlot};
 use crate::muscle::Muscle;
-use glam::{Vec3, Vec4};
+use glam::{Vec3, Vec3A, Vec4};
 
 /// Sliding constraints per parallel chunk of the closest-data block (a few
 /// hundred ns each, so a chunk is worth a fork and join).
@@ -34,11 +34,13 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     }
     let reach = m.contact_reach();
     let c = &mut m.constraints;
+    // A contact layer walks in a substep's first iteration only.
+    let walk = search.walk && (!c.sliding.walk_first_only || search.first_of_substep);
     let input = SlidingInput {
         p: &m.p,
         target_ids: &ws.target_ids,
         targets,
-        search,
+        search: ClosestSchedule { walk, ..search },
         reach,
     };
     let run = SlidingRun::of(&mut c.sliding, &mut ws.warm);
@@ -85,6 +87,10 @@ struct SlidingRun<'a> {
     barycentric: &'a mut [Vec3],
     plane: &'a mut [Vec3],
     warm: &'a mut [u32],
+    /// The run's entries of the batch's `candidate_start` (one more than
+    /// its constraints), into the whole `candidates`.
+    candidate_start: &'a [u32],
+    candidates: &'a [u32],
 }
 
 impl<'a> SlidingRun<'a> {
@@ -102,6 +108,8 @@ impl<'a> SlidingRun<'a> {
             barycentric: &mut s.barycentric,
             plane: &mut s.plane,
             warm,
+            candidate_start: &s.candidate_start,
+            candidates: &s.candidates,
         }
     }
 
@@ -133,6 +141,9 @@ impl<'a> SlidingRun<'a> {
         let (barycentric, barycentric_b) = self.barycentric.split_at_mut(at);
         let (plane, plane_b) = self.plane.split_at_mut(at);
         let (warm, warm_b) = self.warm.split_at_mut(at * targets);
+        // Both halves keep the boundary entry.
+        let (candidate_start, candidate_start_b) =
+            (&self.candidate_start[..=at], &self.candidate_start[at..]);
         (
             Self {
                 particle,
@@ -146,6 +157,8 @@ impl<'a> SlidingRun<'a> {
                 barycentric,
                 plane,
                 warm,
+                candidate_start,
+                candidates: self.candidates,
             },
             Self {
                 particle: particle_b,
@@ -159,6 +172,8 @@ impl<'a> SlidingRun<'a> {
                 barycentric: barycentric_b,
                 plane: plane_b,
                 warm: warm_b,
+                candidate_start: candidate_start_b,
+                candidates: self.candidates,
             },
         )
     }
@@ -219,6 +234,8 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             barycentric,
             plane,
             warm,
+            candidate_start,
+            candidates,
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
         for i in 0..particle.len() {
@@ -243,10 +260,13 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // first iteration of a frame, still checks every bone whose box
             // it is in (it may have entered one).
             let bones_only = !choose;
-            let order = (first < nt)
-                .then_some(first)
-                .into_iter()
-                .chain((0..nt).filter(move |&s| (choose || search.first_of_frame) && s != first));
+            let within = &candidates[candidate_start[i] as usize..candidate_start[i + 1] as usize];
+            let order = (first < nt).then_some(first).into_iter().chain(
+                within
+                    .iter()
+                    .map(|&s| s as usize)
+                    .filter(move |&s| (choose || search.first_of_frame) && s != first),
+            );
             let full = search.wants(v);
             let mut best: Option<(Claim, ClosestHit, usize)> = None;
             for slot in order {
@@ -343,6 +363,16 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
     if nt == 0 || !c.rigid.iter().any(|&r| r) {
         return;
     }
+    // The bones' world boxes, packed (bones are posed once per substep): a
+    // vertex outside a bone's box by `d` is at least `d` from the bone, a
+    // test that reads a few bytes instead of the target (a skin vertex has
+    // every bone of the body as a target).
+    let mut boxes = std::mem::take(&mut ws.bone_boxes);
+    boxes.clear();
+    boxes.extend((0..nt).filter(|&s| c.rigid[s]).filter_map(|s| {
+        let (lo, hi) = targets.target(ws.target_ids[s]).world_box()?;
+        Some((s, lo, hi))
+    }));
     for i in 0..c.len() {
         let v = c.particle[i].index();
         if m.w[v] == 0.0 {
@@ -354,9 +384,15 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
         }
         // The smallest remaining clearance over this vertex's bones.
         let mut margin = f32::INFINITY;
-        for slot in (0..nt).filter(|&s| c.rigid[s]) {
+        let q = Vec3A::from(m.p[v]);
+        for &(slot, lo, hi) in &boxes {
             let cell = i * nt + slot;
             if !c.rest_outside[cell] {
+                continue;
+            }
+            let outside_box = (lo - q).max(q - hi).max(Vec3A::ZERO).length();
+            if outside_box > 0.0 {
+                margin = margin.min(outside_box);
                 continue;
             }
             let target = targets.target(ws.target_ids[slot]);
@@ -399,4 +435,5 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
         };
         ws.bone_margin[i] = m.p[v].extend(margin);
     }
+    ws.bone_boxes = boxes;
 }

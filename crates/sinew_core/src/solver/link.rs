@@ -56,6 +56,8 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     let surfaces: Vec<_> = ws.target_ids.iter().map(|&t| targets.target(t)).collect();
     c.sliding.targets = nt;
     c.sliding.mode = m.params.sliding_mode;
+    c.sliding.walk_first_only = m.params.is_surface_layer()
+        && m.params.sliding_mode == crate::constraints::SlidingMode::Contact;
     c.sliding.rigid = surfaces
         .iter()
         .map(|t| !t.is_deforming() && matches!(t.source, TargetSource::Bone(_)))
@@ -167,6 +169,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
             warm.extend_from_slice(&all[v.index() * nt..(v.index() + 1) * nt]);
         }
     }
+    c.sliding.index_candidates();
     m.relink_weights();
     let cells = warm.len();
     ws.reset_caches(m);

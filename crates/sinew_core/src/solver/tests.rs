@@ -98,6 +98,7 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
             s.plane = vec![s.plane[keep]];
             s.target = vec![s.target[keep]];
             s.lambda = vec![0.0];
+            s.index_candidates();
         }
         K::Volume => c.volume.as_mut().unwrap().compliance = 0.0,
     }

@@ -6,6 +6,7 @@
 //! target_ids        the driver's index of each of the muscle's targets
 //! warm, clearance   closest data's last triangle and bone clearance per
 //! bone_margin       (vertex, target); the bone contacts' margin per vertex
+//! bone_boxes        the bones' world boxes, for bone contacts
 //! plan, jacobi      colour plan / Jacobi incidence of the method in use
 //! momentum          a free muscle's momentum, recorded at the substep's start
 //! ```
@@ -20,7 +21,7 @@ use super::momentum::RigidMomentum;
 use crate::closest::NO_TRIANGLE;
 use crate::constraints::TargetId;
 use crate::muscle::Muscle;
-use glam::Vec4;
+use glam::{Vec3A, Vec4};
 
 /// A muscle's solver state (module docs).
 #[derive(Clone, Debug, Default)]
@@ -45,6 +46,10 @@ pub struct MuscleWorkspace {
     /// substep's first check, and how far it can move from there before one
     /// of its `clearance` cells needs a check.
     pub(crate) bone_margin: Vec<Vec4>,
+    /// Bone contacts' packed world boxes of the muscle's bones, rebuilt at
+    /// every call (kept here so the step allocates nothing): `(target
+    /// slot, min, max)`.
+    pub(crate) bone_boxes: Vec<(usize, Vec3A, Vec3A)>,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
     pub(crate) plan: Option<(u64, ColorPlan)>,

