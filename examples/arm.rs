@@ -8,7 +8,6 @@
 //! `SINEW_SCREENSHOT_FRAME` (default 90) and exit (the panel's
 //! `SinewScreenshotPlugin`): CI does this under Xvfb.
 
-use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
 use bevy::prelude::*;
 use sinew::bevy::prelude::*;
 
@@ -29,37 +28,20 @@ fn main() {
             ..default()
         })
         .add_systems(Startup, setup)
-        .add_systems(Update, (frame_the_muscles, orbit_camera))
+        .add_systems(Update, frame_the_muscles)
         .run();
-}
-
-/// Orbit camera state: angles around the focus point and distance.
-#[derive(Component)]
-struct Orbit {
-    focus: Vec3,
-    yaw: f32,
-    pitch: f32,
-    distance: f32,
-}
-
-impl Orbit {
-    fn transform(&self) -> Transform {
-        let rotation = Quat::from_euler(EulerRot::YXZ, self.yaw, self.pitch, 0.0);
-        Transform::from_translation(self.focus + rotation * Vec3::Z * self.distance)
-            .looking_at(self.focus, Vec3::Y)
-    }
 }
 
 fn setup(mut commands: Commands, assets: Res<AssetServer>) {
     commands.spawn(SinewSceneRoot::Asset(assets.load("scenes/t5.ron")));
     // Aimed at the muscles once they are built (`frame_the_muscles`).
-    let orbit = Orbit {
-        focus: Vec3::ZERO,
+    let orbit = OrbitCamera {
         yaw: -2.2,
         pitch: -0.1,
         distance: 1.0,
+        ..default()
     };
-    commands.spawn((Camera3d::default(), orbit.transform(), orbit));
+    commands.spawn((Camera3d::default(), orbit));
     commands.spawn((
         DirectionalLight {
             illuminance: 8000.0,
@@ -80,7 +62,7 @@ fn setup(mut commands: Commands, assets: Res<AssetServer>) {
 /// backs off until the whole of it is in view.
 fn frame_the_muscles(
     muscles: Query<&MuscleState>,
-    mut cameras: Query<&mut Orbit>,
+    mut cameras: Query<&mut OrbitCamera>,
     mut framed: Local<bool>,
 ) {
     if *framed || muscles.is_empty() {
@@ -94,31 +76,7 @@ fn frame_the_muscles(
         },
     );
     for mut orbit in &mut cameras {
-        orbit.focus = (lo + hi) * 0.5;
-        // The default 45° vertical field of view sees 0.83 × the distance;
-        // leave a margin around the box's diagonal.
-        orbit.distance = (hi - lo).length() * 1.25;
+        orbit.frame(lo, hi);
     }
     *framed = true;
-}
-
-fn orbit_camera(
-    buttons: Res<ButtonInput<MouseButton>>,
-    motion: Res<AccumulatedMouseMotion>,
-    scroll: Res<AccumulatedMouseScroll>,
-    mut egui: sinew::bevy::ui::bevy_egui::EguiContexts,
-    mut cameras: Query<(&mut Orbit, &mut Transform)>,
-) {
-    // The panel gets the mouse when the pointer is over it.
-    if egui.ctx_mut().is_ok_and(|c| c.egui_wants_pointer_input()) {
-        return;
-    }
-    for (mut orbit, mut transform) in &mut cameras {
-        if buttons.pressed(MouseButton::Left) {
-            orbit.yaw -= motion.delta.x * 0.005;
-            orbit.pitch = (orbit.pitch - motion.delta.y * 0.005).clamp(-1.5, 1.5);
-        }
-        orbit.distance = (orbit.distance * (1.0 - scroll.delta.y * 0.1)).clamp(0.1, 5.0);
-        *transform = orbit.transform();
-    }
 }

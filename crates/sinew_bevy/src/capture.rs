@@ -1,10 +1,12 @@
 //! Screenshots on request (feature `render`): with the environment variable
 //! `SINEW_SCREENSHOT=out.png` set, an app with [`SinewUiPlugin`](crate::ui)
 //! (or [`SinewScreenshotPlugin`]) saves its primary window once the
-//! simulation reaches frame `SINEW_SCREENSHOT_FRAME` (default 90) and exits
-//! ten frames later — how CI and the README's pictures capture the examples
+//! simulation has run `SINEW_SCREENSHOT_FRAME` steps (default 90) with
+//! every scene spawned and every muscle built, and exits ten frames later — how CI and the README's pictures capture the examples
 //! under Xvfb. Without the variable it does nothing.
 
+use crate::components::{Muscle, MuscleState};
+use crate::scene::SpawnedScene;
 use crate::settings::SinewClock;
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
@@ -33,17 +35,30 @@ struct ScreenshotRequest {
     at: u64,
 }
 
+/// Muscles still building.
+type Building = (With<Muscle>, Without<MuscleState>);
+
+#[allow(clippy::too_many_arguments)]
 fn take_screenshot(
     mut commands: Commands,
     request: Res<ScreenshotRequest>,
     clock: Res<SinewClock>,
+    scenes: Query<&SpawnedScene>,
+    building: Query<(), Building>,
     mut frames: Local<u32>,
+    mut ready_at: Local<Option<u64>>,
     mut taken: Local<Option<u32>>,
     mut exit: MessageWriter<AppExit>,
 ) {
     *frames += 1;
+    if ready_at.is_none() && building.is_empty() && scenes.iter().all(|s| s.done) {
+        *ready_at = Some(clock.frame);
+    }
+    let Some(ready_at) = *ready_at else {
+        return;
+    };
     match *taken {
-        None if clock.frame >= request.at => {
+        None if clock.frame >= ready_at + request.at => {
             commands
                 .spawn(Screenshot::primary_window())
                 .observe(save_to_disk(request.path.clone()));

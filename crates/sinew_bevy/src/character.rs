@@ -3,24 +3,44 @@
 //! bone: a joint entity with a [`SinewBone`] is read after transform
 //! propagation like any other. [`GltfCharacters`] finds a spawned scene's
 //! joints by name, makes them bones, and plays a clip on the scene's
-//! [`AnimationPlayer`] (the `character` example, in full:
+//! [`AnimationPlayer`]; [`OnCharacter`] puts a fitted scene (bones,
+//! muscles, a simulated skin) on a character (the `character` example:
 //! `examples/character.rs`).
+//!
+//! Load a character's file once and take its scene and clips from the
+//! loaded [`Gltf`] (`scenes`, `named_animations`): asking
+//! for a file's assets one by one may read it several times, and asking
+//! for one after the others were dropped reads it again — each new read
+//! respawns the character, with everything parented to its joints.
 //!
 //! ```no_run
 //! # use bevy::prelude::*;
 //! # use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 //! # use sinew_bevy::prelude::*;
-//! fn on_ready(ready: On<WorldInstanceReady>, mut gltf: GltfCharacters) -> Result {
+//! #[derive(Resource)]
+//! struct Character(Handle<Gltf>);
+//!
+//! fn on_ready(
+//!     ready: On<WorldInstanceReady>,
+//!     character: Res<Character>,
+//!     gltfs: Res<Assets<Gltf>>,
+//!     mut gltf: GltfCharacters,
+//! ) -> Result {
 //!     let upper_arm = gltf.bone(ready.entity, "upperarm_r")?;
-//!     gltf.play_looped(ready.entity, GltfAssetLabel::Animation(0).from_asset("characters/makehuman.glb"))?;
+//!     let clip = gltfs.get(&character.0).ok_or("not loaded")?.animations[0].clone();
+//!     gltf.play_looped(ready.entity, clip)?;
 //!     Ok(())
 //! }
 //! ```
 
 use crate::components::{SinewBone, SkeletonDriver, SkeletonFrames};
-use bevy::animation::{AnimationPlayer, graph::AnimationNodeIndex};
-use bevy::asset::AssetPath;
+use bevy::animation::animated_field;
+use bevy::animation::prelude::{AnimatableCurve, AnimatedField};
+use bevy::animation::{
+    AnimationClip, AnimationPlayer, AnimationTargetId, graph::AnimationNodeIndex,
+};
 use bevy::ecs::system::SystemParam;
+use bevy::math::curve::{ConstantCurve, Interval};
 use bevy::prelude::*;
 use thiserror::Error;
 
@@ -33,8 +53,9 @@ pub struct GltfCharacters<'w, 's> {
     children: Query<'w, 's, &'static Children>,
     names: Query<'w, 's, &'static Name>,
     players: Query<'w, 's, (), With<AnimationPlayer>>,
-    assets: Res<'w, AssetServer>,
+    targets: Query<'w, 's, (&'static AnimationTargetId, &'static Transform)>,
     graphs: ResMut<'w, Assets<AnimationGraph>>,
+    clips: ResMut<'w, Assets<AnimationClip>>,
 }
 
 /// A glTF scene lacks what was asked of it.
@@ -96,16 +117,16 @@ impl<'w, 's> GltfCharacters<'w, 's> {
             .ok_or(CharacterJointError::NoAnimationPlayer { root })
     }
 
-    /// Plays the clip at `clip` (e.g. `GltfAssetLabel::Animation(0)
-    /// .from_asset(file)`) on repeat on the scene's animation player, through
-    /// a one-clip [`AnimationGraph`]; returns the clip's node.
-    pub fn play_looped<'a>(
+    /// Plays `clip` (from the character's loaded `Gltf`: see the module
+    /// docs) on repeat on the scene's animation player, through a one-clip
+    /// [`AnimationGraph`]; returns the clip's node.
+    pub fn play_looped(
         &mut self,
         root: Entity,
-        clip: impl Into<AssetPath<'a>>,
+        clip: Handle<AnimationClip>,
     ) -> Result<AnimationNodeIndex, CharacterJointError> {
         let player_entity = self.animation_player(root)?;
-        let (graph, node) = AnimationGraph::from_clip(self.assets.load(clip.into()));
+        let (graph, node) = AnimationGraph::from_clip(clip);
         let mut player = AnimationPlayer::default();
         player.play(node).repeat();
         let graph = AnimationGraphHandle(self.graphs.add(graph));
@@ -113,9 +134,112 @@ impl<'w, 's> GltfCharacters<'w, 's> {
         Ok(node)
     }
 
+    /// Plays `clip` on repeat, blended in from the pose the scene's joints
+    /// have now (its bind pose, before any clip played) over `seconds`: a
+    /// body simulated on the joints (muscles, a skin) then starts moving
+    /// smoothly instead of jumping to the clip's first pose. Returns the
+    /// clip's node. `seconds ≤ 0` plays it at once.
+    pub fn play_looped_from_rest(
+        &mut self,
+        root: Entity,
+        clip: Handle<AnimationClip>,
+        seconds: f32,
+    ) -> Result<AnimationNodeIndex, CharacterJointError> {
+        let player_entity = self.animation_player(root)?;
+        // The joints' pose now, held: one constant curve per channel.
+        let mut rest = AnimationClip::default();
+        let held = Interval::new(0.0, 1.0).expect("a unit interval");
+        for entity in std::iter::once(root).chain(self.children.iter_descendants(root)) {
+            let Ok((&target, t)) = self.targets.get(entity) else {
+                continue;
+            };
+            rest.add_curve_to_target(
+                target,
+                AnimatableCurve::new(
+                    animated_field!(Transform::translation),
+                    ConstantCurve::new(held, t.translation),
+                ),
+            );
+            rest.add_curve_to_target(
+                target,
+                AnimatableCurve::new(
+                    animated_field!(Transform::rotation),
+                    ConstantCurve::new(held, t.rotation),
+                ),
+            );
+            rest.add_curve_to_target(
+                target,
+                AnimatableCurve::new(
+                    animated_field!(Transform::scale),
+                    ConstantCurve::new(held, t.scale),
+                ),
+            );
+        }
+        let mut graph = AnimationGraph::new();
+        let from = graph.add_clip(self.clips.add(rest), 1.0, graph.root);
+        let to = graph.add_clip(clip, 1.0, graph.root);
+        let mut player = AnimationPlayer::default();
+        player.play(from).repeat();
+        player.play(to).repeat().set_weight(0.0);
+        let blend = ClipBlendIn {
+            from,
+            to,
+            seconds: seconds.max(0.0),
+            elapsed: 0.0,
+        };
+        if blend.seconds == 0.0 {
+            player.stop(from);
+            player.animation_mut(to).map(|a| a.set_weight(1.0));
+        }
+        let graph = AnimationGraphHandle(self.graphs.add(graph));
+        let mut e = self.commands.entity(player_entity);
+        e.insert((player, graph));
+        if blend.seconds > 0.0 {
+            e.insert(blend);
+        }
+        Ok(to)
+    }
+
     /// The commands of the system this parameter belongs to.
     pub fn commands(&mut self) -> &mut Commands<'w, 's> {
         &mut self.commands
+    }
+}
+
+/// An [`AnimationPlayer`] blending from one playing clip to another
+/// ([`GltfCharacters::play_looped_from_rest`]): the weight moves linearly
+/// from `from` to `to` over `seconds` of virtual time, then `from` stops
+/// and this component is removed.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct ClipBlendIn {
+    /// The clip blended out.
+    pub from: AnimationNodeIndex,
+    /// The clip blended in.
+    pub to: AnimationNodeIndex,
+    /// How long the blend takes. Units: s.
+    pub seconds: f32,
+    /// How far it has gone. Units: s.
+    pub elapsed: f32,
+}
+
+/// Advances every [`ClipBlendIn`].
+pub(crate) fn blend_clips_in(
+    mut commands: Commands,
+    time: Res<Time>,
+    mut players: Query<(Entity, &mut AnimationPlayer, &mut ClipBlendIn)>,
+) {
+    for (entity, mut player, mut blend) in &mut players {
+        blend.elapsed += time.delta_secs();
+        let s = (blend.elapsed / blend.seconds).clamp(0.0, 1.0);
+        if let Some(to) = player.animation_mut(blend.to) {
+            to.set_weight(s);
+        }
+        if s >= 1.0 {
+            player.stop(blend.from);
+            commands.entity(entity).remove::<ClipBlendIn>();
+        } else if let Some(from) = player.animation_mut(blend.from) {
+            from.set_weight(1.0 - s);
+        }
     }
 }
 
@@ -127,6 +251,10 @@ impl<'w, 's> GltfCharacters<'w, 's> {
 /// (`bevy_animation`) moves it; bones whose body the character lacks stay
 /// with the scene's own skeleton (a warning names them). Made for scenes
 /// whose skeleton is the character's, as `sinew fit --out` writes them.
+/// When the scene brings a simulated skin (a surface layer bound to the
+/// bones), the character's own skinned meshes are hidden
+/// ([`SinewView::character_skin`](crate::view::SinewView::character_skin)
+/// off): the simulated skin takes their place.
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OnCharacter(pub Entity);
 
@@ -149,6 +277,8 @@ pub(crate) fn place_scenes_on_characters(
     >,
     children: Query<&Children>,
     names: Query<&Name>,
+    states: Query<&crate::components::MuscleState>,
+    mut view: Option<ResMut<crate::view::SinewView>>,
 ) {
     for (root, on, spawned, driver) in &mut roots {
         if !spawned.done {
@@ -191,6 +321,12 @@ pub(crate) fn place_scenes_on_characters(
                     .entity(root)
                     .remove::<(SkeletonDriver, SkeletonFrames)>();
             }
+        }
+        let brings_skin = states
+            .iter_many(&spawned.muscles)
+            .any(|s| s.muscle.params.is_surface_layer() && !s.muscle.binding.is_empty());
+        if let Some(view) = view.as_deref_mut().filter(|_| brings_skin) {
+            view.character_skin = false;
         }
         commands.entity(root).insert(PlacedOnCharacter);
     }

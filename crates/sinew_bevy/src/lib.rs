@@ -90,6 +90,8 @@ pub mod debug;
 pub mod events;
 #[cfg(feature = "render")]
 pub mod mesh_maps;
+#[cfg(feature = "ui")]
+pub mod orbit;
 mod pacing;
 pub mod relations;
 #[cfg(feature = "render")]
@@ -98,11 +100,11 @@ pub mod save;
 pub mod scene;
 pub mod sensors;
 pub mod settings;
-#[cfg(feature = "render")]
-pub mod skin_view;
 mod systems;
 #[cfg(feature = "ui")]
 pub mod ui;
+#[cfg(feature = "render")]
+pub mod view;
 
 use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
@@ -120,7 +122,7 @@ pub mod prelude {
     pub use crate::capture::SinewScreenshotPlugin;
     #[cfg(feature = "gltf")]
     pub use crate::character::{
-        CharacterJointError, GltfCharacters, OnCharacter, PlacedOnCharacter,
+        CharacterJointError, ClipBlendIn, GltfCharacters, OnCharacter, PlacedOnCharacter,
     };
     pub use crate::components::{
         ActivationCurve, BonePose, BoneTarget, BoneTrack, Compliance, ConstraintSet,
@@ -138,7 +140,7 @@ pub mod prelude {
         Connections, ConnectsTo, HeldAttachments, HeldVertices,
     };
     #[cfg(feature = "render")]
-    pub use crate::render::TargetFromMesh;
+    pub use crate::render::{BoneMesh, MuscleMesh, SkinLayerMesh, TargetFromMesh};
     pub use crate::save::{SaveScene, SceneSaveError, SceneSaveFailed, SceneSaved};
     pub use crate::scene::{SinewScene, SinewSceneRoot, SpawnedScene};
     pub use crate::sensors::{
@@ -147,14 +149,14 @@ pub mod prelude {
     };
     pub use crate::settings::{Method, SimulationState, SinewClock, SinewSettings, SinewTimings};
     #[cfg(feature = "render")]
-    pub use crate::skin_view::SkinView;
-    #[cfg(feature = "ui")]
-    pub use crate::ui::SinewUiPlugin;
+    pub use crate::view::SinewView;
     pub use crate::{
         PacingMode, ResetSimulation, SimulationPacing, SinewIterationSchedule,
         SinewIterationSystems, SinewPlugin, SinewPrepareSchedule, SinewStepSchedule,
         SinewSubstepSchedule, SinewSystems, StepContext,
     };
+    #[cfg(feature = "ui")]
+    pub use crate::{orbit::OrbitCamera, ui::SinewUiPlugin};
 }
 
 /// The plug-in's system sets, in the order they run.
@@ -332,6 +334,7 @@ impl Plugin for SinewPlugin {
         app.insert_resource(self.settings.clone())
             .insert_resource(self.pacing)
             .register_type::<SimulationPacing>()
+            .add_systems(First, pacing::lock_time_to_steps)
             .init_resource::<SinewClock>()
             .init_resource::<SinewTimings>()
             .init_resource::<SimulationState>()
@@ -510,7 +513,8 @@ impl Plugin for SinewPlugin {
             character::place_scenes_on_characters
                 .after(scene::spawn_scenes)
                 .before(SinewSystems::AnimateBones),
-        );
+        )
+        .add_systems(Update, character::blend_clips_in);
         #[cfg(feature = "render")]
         render::register(app);
     }

@@ -6,6 +6,7 @@
 
 use crate::settings::{SimulationState, SinewClock};
 use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
 use std::time::Duration;
 
 /// How the simulation follows the app's updates.
@@ -20,6 +21,14 @@ pub enum PacingMode {
     /// One step per app update, whatever time it took: offline rendering,
     /// batch runs and tests that compare frame by frame.
     EveryUpdate,
+    /// One step per app update, and Bevy's virtual clock advances by
+    /// exactly the step's time per update (the plug-in sets
+    /// [`TimeUpdateStrategy::ManualDuration`]): clips played by
+    /// `bevy_animation` and the simulation stay in step whatever an update
+    /// costs — slow motion where the machine cannot keep up, real time
+    /// where it can (a 60 Hz display with vsync at the default `dt`). A
+    /// DCC's "play every frame".
+    Lockstep,
 }
 
 /// How the simulation follows Bevy's clock (a resource; the plug-in's
@@ -69,7 +78,9 @@ impl SimulationPacing {
                 clock.owed = Duration::ZERO;
                 0
             }
-            (SimulationState::StepOnce, _) | (_, PacingMode::EveryUpdate) => 1,
+            (SimulationState::StepOnce, _)
+            | (_, PacingMode::EveryUpdate)
+            | (_, PacingMode::Lockstep) => 1,
             (SimulationState::Playing, PacingMode::RealTime) => {
                 let step = f64::from(step);
                 let owed = clock.owed.as_secs_f64() + elapsed.as_secs_f64();
@@ -82,6 +93,33 @@ impl SimulationPacing {
                 run as u32
             }
         }
+    }
+}
+
+/// In [`PacingMode::Lockstep`], makes Bevy's clock advance by one step's
+/// time per update; gives the app its own [`TimeUpdateStrategy`] back when
+/// the mode changes.
+pub(crate) fn lock_time_to_steps(
+    pacing: Res<SimulationPacing>,
+    settings: Res<crate::settings::SinewSettings>,
+    strategy: Option<ResMut<TimeUpdateStrategy>>,
+    mut own: Local<Option<TimeUpdateStrategy>>,
+) {
+    let Some(mut strategy) = strategy else {
+        return;
+    };
+    if pacing.mode == PacingMode::Lockstep {
+        let step = f64::from(settings.dt) * f64::from(settings.time_scale);
+        if step.is_finite() && step > 0.0 {
+            let wanted = Duration::from_secs_f64(step);
+            if !matches!(*strategy, TimeUpdateStrategy::ManualDuration(d) if d == wanted) {
+                let before =
+                    std::mem::replace(&mut *strategy, TimeUpdateStrategy::ManualDuration(wanted));
+                own.get_or_insert(before);
+            }
+        }
+    } else if let Some(before) = own.take() {
+        *strategy = before;
     }
 }
 

@@ -1,6 +1,8 @@
 //! Rendering (feature `render`): every muscle gets a Bevy [`Mesh`] whose
 //! positions and normals are rewritten each frame, and a material tinted by
-//! its activation; every bone with a target mesh gets a mesh too.
+//! its activation; a surface layer (a simulated skin) gets a skin-coloured
+//! material instead; every bone with a target mesh gets a mesh too. Which
+//! of them are drawn: [`crate::view::SinewView`].
 //!
 //! Without a `PbrPlugin` (headless apps) these systems do nothing.
 
@@ -38,10 +40,29 @@ impl Default for ActivationTint {
 #[derive(Component, Clone, Debug)]
 pub struct MuscleMesh(pub Handle<Mesh>);
 
+/// Marks the mesh of a simulated surface layer (a skin:
+/// [`MuscleParams::is_surface_layer`](sinew_core::muscle::MuscleParams::is_surface_layer)),
+/// drawn in [`SkinLayerMesh::COLOR`] rather than tinted by activation.
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct SkinLayerMesh;
+
+impl SkinLayerMesh {
+    /// The colour skin layers are drawn in.
+    pub const COLOR: Color = Color::srgb(0.86, 0.66, 0.55);
+}
+
+/// Marks the meshes this module gave bones (drawn when
+/// [`SinewView::bones`](crate::view::SinewView::bones) is on).
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct BoneMesh;
+
 pub(crate) fn register(app: &mut App) {
-    app.init_resource::<crate::skin_view::SkinView>()
-        .register_type::<crate::skin_view::SkinView>()
-        .add_systems(PostUpdate, crate::skin_view::apply_skin_view)
+    app.init_resource::<crate::view::SinewView>()
+        .register_type::<crate::view::SinewView>()
+        .add_systems(
+            PostUpdate,
+            (crate::view::apply_xray, crate::view::apply_visibility),
+        )
         .register_type::<ActivationTint>()
         .register_type::<TargetFromMesh>()
         .add_systems(
@@ -158,22 +179,32 @@ fn add_muscle_meshes(
     for (entity, state, tint) in &muscles {
         let m = &state.muscle;
         let handle = meshes.add(triangle_mesh(m.surface_positions(), &m.mesh.triangles));
+        let layer = m.params.is_surface_layer();
         let tint = tint.copied().unwrap_or_default();
         let material = materials.add(StandardMaterial {
-            base_color: tint.relaxed,
-            perceptual_roughness: 0.55,
+            base_color: if layer {
+                SkinLayerMesh::COLOR
+            } else {
+                tint.relaxed
+            },
+            perceptual_roughness: if layer { 0.7 } else { 0.55 },
             double_sided: true,
             cull_mode: None,
             ..default()
         });
-        commands.entity(entity).insert((
+        let mut e = commands.entity(entity);
+        e.insert((
             MuscleMesh(handle.clone()),
             Mesh3d(handle),
             MeshMaterial3d(material),
-            tint,
             // Vertices are world positions.
             Transform::IDENTITY,
         ));
+        if layer {
+            e.insert(SkinLayerMesh);
+        } else {
+            e.insert(tint);
+        }
     }
 }
 
@@ -205,7 +236,7 @@ fn add_bone_meshes(
         let mesh = meshes.add(triangle_mesh(&t.positions, &t.triangles));
         commands
             .entity(entity)
-            .insert((Mesh3d(mesh), MeshMaterial3d(material)));
+            .insert((Mesh3d(mesh), MeshMaterial3d(material), BoneMesh));
     }
 }
 

@@ -16,8 +16,9 @@ pub use bevy_egui;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 use sinew_core::SweepSchedule;
 
-/// Adds the egui panel (and `EguiPlugin` if the app has none), and
-/// [`SinewScreenshotPlugin`] (screenshots on request).
+/// Adds the egui panel (and `EguiPlugin` if the app has none),
+/// [`SinewScreenshotPlugin`] (screenshots on request) and the mouse
+/// controls of [`OrbitCamera`](crate::orbit::OrbitCamera)s.
 #[derive(Clone, Debug, Default)]
 pub struct SinewUiPlugin;
 
@@ -29,7 +30,9 @@ impl Plugin for SinewUiPlugin {
         if !app.is_plugin_added::<SinewScreenshotPlugin>() {
             app.add_plugins(SinewScreenshotPlugin);
         }
-        app.add_systems(EguiPrimaryContextPass, panel);
+        app.register_type::<crate::orbit::OrbitCamera>()
+            .add_systems(EguiPrimaryContextPass, panel)
+            .add_systems(Update, crate::orbit::orbit_cameras);
     }
 }
 
@@ -55,7 +58,7 @@ fn panel(
     scenes: Query<(Entity, &SinewSceneRoot)>,
     mut muscles: Query<(Entity, &mut Muscle, Option<&MuscleState>)>,
     log: Res<crate::events::SinewLog>,
-    mut skin: Option<ResMut<crate::skin_view::SkinView>>,
+    mut layers_view: Option<ResMut<crate::view::SinewView>>,
     #[cfg(feature = "debug")] mut view: Option<ResMut<crate::debug::SinewDebugView>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
@@ -84,12 +87,26 @@ fn panel(
                     save.write(SaveScene { root, path: None });
                 }
             }
-            if let Some(skin) = skin.as_deref_mut().filter(|s| s.skinned > 0) {
-                let mut xray = skin.xray;
-                ui.checkbox(&mut xray, "skin x-ray (see the muscles under it)");
-                if xray != skin.xray {
-                    skin.xray = xray;
-                }
+            if let Some(layers_view) = layers_view.as_mut() {
+                egui::CollapsingHeader::new("View")
+                    .default_open(true)
+                    .show(ui, |ui| view_toggles(ui, layers_view));
+            }
+            let is_layer =
+                |s: Option<&MuscleState>| s.is_some_and(|s| s.muscle.params.is_surface_layer());
+            let mut layers: Vec<_> = muscles.iter_mut().filter(|(.., s)| is_layer(*s)).collect();
+            if !layers.is_empty() {
+                layers.sort_by_key(|(e, ..)| *e);
+                egui::CollapsingHeader::new("Skin")
+                    .default_open(true)
+                    .show(ui, |ui| {
+                        for (_, mut layer, state) in layers {
+                            if let Some(state) = state {
+                                ui.label(&state.muscle.name);
+                            }
+                            skin_panel(ui, &mut layer);
+                        }
+                    });
             }
             ui.separator();
             egui::CollapsingHeader::new("Solver")
@@ -104,10 +121,12 @@ fn panel(
                     .default_open(false)
                     .show(ui, |ui| debug_toggles(ui, view));
             }
-            egui::CollapsingHeader::new(format!("Muscles ({})", muscles.iter().len()))
+            let count = muscles.iter().filter(|(.., s)| !is_layer(*s)).count();
+            egui::CollapsingHeader::new(format!("Muscles ({count})"))
                 .default_open(true)
                 .show(ui, |ui| {
-                    let mut list: Vec<_> = muscles.iter_mut().collect();
+                    let mut list: Vec<_> =
+                        muscles.iter_mut().filter(|(.., s)| !is_layer(*s)).collect();
                     list.sort_by_key(|(e, ..)| *e);
                     for (entity, mut muscle, built) in list {
                         let name = built.map_or_else(
@@ -268,6 +287,81 @@ fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {
 }
 
 #[cfg(feature = "debug")]
+/// Which layers are drawn; see-through skin.
+fn view_toggles(ui: &mut egui::Ui, view: &mut ResMut<crate::view::SinewView>) {
+    // Edit a copy so an untouched panel does not mark the view changed.
+    let mut edit = (**view).clone();
+    ui.horizontal(|ui| {
+        if edit.skin_layers > 0 {
+            ui.checkbox(&mut edit.skin, "skin");
+        }
+        if edit.skinned > 0 {
+            ui.checkbox(&mut edit.character_skin, "skinning only")
+                .on_hover_text(
+                    "the character's skin as its skeleton deforms it, without the simulation",
+                );
+        }
+        ui.checkbox(&mut edit.muscles, "muscles");
+        ui.checkbox(&mut edit.bones, "bones");
+    });
+    if edit.has_skin() {
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut edit.xray, "x-ray");
+            ui.add_enabled(
+                edit.xray,
+                egui::Slider::new(&mut edit.opacity, 0.0..=1.0).text("skin opacity"),
+            );
+        });
+    }
+    if edit != **view {
+        **view = edit;
+    }
+}
+
+/// A simulated skin's parameters: how closely it follows the skeleton,
+/// how much it stretches, how it slides on what is under it.
+fn skin_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
+    let mut edit = (**m).clone();
+    let c = &mut edit.compliance;
+    for (name, value, hint) in [
+        (
+            "follow skeleton (bind)",
+            &mut c.bind,
+            "compliance of the pull towards the skinned position: larger lets muscles move the skin more",
+        ),
+        (
+            "stretch",
+            &mut c.fiber,
+            "compliance of the skin's edges: larger stretches more",
+        ),
+        (
+            "slide",
+            &mut c.sliding,
+            "compliance of the contact with the muscles and bones below",
+        ),
+    ] {
+        ui.add(
+            egui::Slider::new(value, 0.0..=1.0)
+                .logarithmic(true)
+                .smallest_positive(1e-6)
+                .text(name),
+        )
+        .on_hover_text(hint);
+    }
+    ui.add(egui::Slider::new(&mut edit.damping, 0.0..=40.0).text("damping 1/s"));
+    let mut n = edit.iterations.unwrap_or(10);
+    if ui
+        .add(egui::Slider::new(&mut n, 1..=20).text("iterations"))
+        .on_hover_text("the skin's own iteration count (the muscles keep theirs)")
+        .changed()
+    {
+        edit.iterations = Some(n);
+    }
+    if edit != **m {
+        **m = edit;
+    }
+}
+
 fn debug_toggles(ui: &mut egui::Ui, v: &mut crate::debug::SinewDebugView) {
     ui.checkbox(&mut v.fibers, "fibres (by activation)");
     ui.checkbox(&mut v.internal, "internal structure");

@@ -16,7 +16,7 @@ use sinew_core::character::{glb, primitives::two_bone_arm};
 use std::time::Duration;
 
 /// Elbow flexion of the test arm's clip at its peak (t = 1 s), rad.
-const FLEX: f32 = 1.5;
+pub(crate) const FLEX: f32 = 1.5;
 
 #[derive(Resource, Clone, Copy)]
 struct Joints {
@@ -26,7 +26,7 @@ struct Joints {
 
 /// A headless app that loads glTF scenes from `dir`, 60 updates per second
 /// of `Time` (the animation's clock and the simulation's agree).
-fn gltf_app(dir: &std::path::Path) -> App {
+pub(crate) fn gltf_app(dir: &std::path::Path) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -50,7 +50,40 @@ fn gltf_app(dir: &std::path::Path) -> App {
     app
 }
 
-fn on_ready(ready: On<WorldInstanceReady>, mut gltf: GltfCharacters) -> Result {
+/// A loaded glTF file: its scenes and clips, read once.
+#[derive(Resource)]
+pub(crate) struct LoadedGltf(pub Handle<Gltf>);
+
+impl LoadedGltf {
+    /// The file's first clip.
+    pub(crate) fn first_clip(&self, gltfs: &Assets<Gltf>) -> Handle<AnimationClip> {
+        gltfs.get(&self.0).expect("loaded").animations[0].clone()
+    }
+}
+
+/// Loads `file` (once), waits for it, and spawns its first scene with
+/// `extra`; the file stays loaded as [`LoadedGltf`]. Returns the scene root.
+pub(crate) fn spawn_gltf(app: &mut App, file: &str, extra: impl Bundle) -> Entity {
+    let handle: Handle<Gltf> = app.world().resource::<AssetServer>().load(file.to_string());
+    for _ in 0..600 {
+        app.update();
+        if app.world().resource::<Assets<Gltf>>().contains(&handle) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let gltfs = app.world().resource::<Assets<Gltf>>();
+    let scene = gltfs.get(&handle).expect("the glTF loads").scenes[0].clone();
+    app.insert_resource(LoadedGltf(handle));
+    app.world_mut().spawn((WorldAssetRoot(scene), extra)).id()
+}
+
+fn on_ready(
+    ready: On<WorldInstanceReady>,
+    loaded: Res<LoadedGltf>,
+    gltfs: Res<Assets<Gltf>>,
+    mut gltf: GltfCharacters,
+) -> Result {
     let upper_arm = gltf.bone(ready.entity, "upper_arm")?;
     let forearm = gltf.bone(ready.entity, "forearm")?;
     // In the upper arm's frame (the shoulder at its origin, the elbow 30 cm
@@ -62,10 +95,7 @@ fn on_ready(ready: On<WorldInstanceReady>, mut gltf: GltfCharacters) -> Result {
             .attach(MuscleAttachment::region(upper_arm, origin, 0.012))
             .attach(MuscleAttachment::region(forearm, insertion, 0.012)),
     );
-    gltf.play_looped(
-        ready.entity,
-        GltfAssetLabel::Animation(0).from_asset("arm.glb"),
-    )?;
+    gltf.play_looped(ready.entity, loaded.first_clip(&gltfs))?;
     gltf.commands()
         .insert_resource(Joints { upper_arm, forearm });
     Ok(())
@@ -81,13 +111,8 @@ fn gltf_joints_played_by_bevy_animation_drive_a_muscle() {
     let mut app = gltf_app(&dir);
     // The arm hangs from a shoulder 1.5 m up, moved away from the origin.
     let at = Transform::from_xyz(0.4, 1.5, -0.2);
-    let scene = app
-        .world()
-        .resource::<AssetServer>()
-        .load(GltfAssetLabel::Scene(0).from_asset("arm.glb"));
-    app.world_mut()
-        .spawn((WorldAssetRoot(scene), at))
-        .observe(on_ready);
+    let character = spawn_gltf(&mut app, "arm.glb", at);
+    app.world_mut().entity_mut(character).observe(on_ready);
     let mut built_at = None;
     for frame in 0..600 {
         app.update();
@@ -223,7 +248,7 @@ fn skin_xray_blends_the_skinned_materials_and_gives_them_back() {
     ));
     app.world_mut().spawn(MeshMaterial3d(other.clone()));
     app.update();
-    assert_eq!(app.world().resource::<SkinView>().skinned, 1);
+    assert_eq!(app.world().resource::<SinewView>().skinned, 1);
     let look = |app: &App, h: &Handle<StandardMaterial>| {
         let m = app
             .world()
@@ -233,7 +258,7 @@ fn skin_xray_blends_the_skinned_materials_and_gives_them_back() {
         (m.alpha_mode, m.base_color.alpha())
     };
     assert_eq!(look(&app, &skin), (AlphaMode::Opaque, 0.9));
-    app.world_mut().resource_mut::<SkinView>().xray = true;
+    app.world_mut().resource_mut::<SinewView>().xray = true;
     app.update();
     let (mode, alpha) = look(&app, &skin);
     assert_eq!(mode, AlphaMode::Blend);
@@ -243,7 +268,7 @@ fn skin_xray_blends_the_skinned_materials_and_gives_them_back() {
         (AlphaMode::Opaque, 1.0),
         "not skinned: untouched"
     );
-    app.world_mut().resource_mut::<SkinView>().xray = false;
+    app.world_mut().resource_mut::<SinewView>().xray = false;
     app.update();
     assert_eq!(
         look(&app, &skin),
@@ -285,23 +310,17 @@ fn a_scene_on_a_character_follows_its_animated_joints() {
     let built = Arc::new(SinewScene::build(scene, &dir).unwrap());
 
     let mut app = gltf_app(&dir);
-    let gltf = app
-        .world()
-        .resource::<AssetServer>()
-        .load(GltfAssetLabel::Scene(0).from_asset("arm.glb"));
-    let character = app
-        .world_mut()
-        .spawn(WorldAssetRoot(gltf))
-        .observe(
-            |ready: On<WorldInstanceReady>, mut gltf: GltfCharacters| -> Result {
-                gltf.play_looped(
-                    ready.entity,
-                    GltfAssetLabel::Animation(0).from_asset("arm.glb"),
-                )?;
-                Ok(())
-            },
-        )
-        .id();
+    let character = spawn_gltf(&mut app, "arm.glb", ());
+    app.world_mut().entity_mut(character).observe(
+        |ready: On<WorldInstanceReady>,
+         loaded: Res<LoadedGltf>,
+         gltfs: Res<Assets<Gltf>>,
+         mut gltf: GltfCharacters|
+         -> Result {
+            gltf.play_looped(ready.entity, loaded.first_clip(&gltfs))?;
+            Ok(())
+        },
+    );
     let root = app
         .world_mut()
         .spawn((SinewSceneRoot::Built(built), OnCharacter(character)))

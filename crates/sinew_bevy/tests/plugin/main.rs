@@ -6,6 +6,7 @@
 mod common;
 
 mod character;
+mod character_skin;
 mod drivers;
 mod events;
 mod headless;

@@ -96,6 +96,36 @@ fn one_simulated_second_takes_one_second_of_time_at_any_update_rate() {
 }
 
 #[test]
+fn lockstep_advances_time_by_one_step_per_update_however_slow_the_updates() {
+    // The app's own clock says 0.2 s per update (a slow machine); in
+    // lockstep the plug-in makes it one step's time, so a clip played on
+    // `Time` and the muscles stay in step: 60 updates, 60 steps, 1 s of
+    // `Time` and 1 s simulated, nothing dropped.
+    let lockstep = SimulationPacing {
+        mode: PacingMode::Lockstep,
+        ..default()
+    };
+    let (mut app, _) = app_at(5.0, lockstep);
+    app.update(); // the plug-in takes the clock from the next update on
+    let start = app.world().resource::<Time<Virtual>>().elapsed_secs_f64();
+    for _ in 0..60 {
+        app.update();
+    }
+    let clock = *app.world().resource::<SinewClock>();
+    let elapsed = app.world().resource::<Time<Virtual>>().elapsed_secs_f64() - start;
+    assert_eq!(clock.frame, 61);
+    assert!((elapsed - 1.0).abs() < 1e-5, "{elapsed} s of Time");
+    assert_eq!(clock.dropped, Duration::ZERO);
+    // Back to real time: the app's clock is its own again.
+    app.world_mut().resource_mut::<SimulationPacing>().mode = PacingMode::RealTime;
+    app.update();
+    assert!(matches!(
+        *app.world().resource::<TimeUpdateStrategy>(),
+        TimeUpdateStrategy::ManualDuration(d) if d == Duration::from_millis(200)
+    ));
+}
+
+#[test]
 fn an_app_that_falls_behind_runs_the_capped_steps_and_drops_the_rest() {
     // Two updates of 0.2 s each: 12 steps owed per update, 4 run. (Bevy's
     // `Time<Virtual>` itself clamps an update to `max_delta`, 0.25 s.)
