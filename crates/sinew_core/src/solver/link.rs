@@ -62,9 +62,41 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         .iter()
         .map(|t| !t.is_deforming() && matches!(t.source, TargetSource::Bone(_)))
         .collect();
-    let hits: Vec<Option<ClosestHit>> = (0..n * nt)
-        .map(|cell| surfaces[cell % nt].closest(m.x[cell / nt], None))
-        .collect();
+    // Closest points at rest per (vertex, target), searched only where they
+    // can matter — a skin vertex has every muscle and bone of a body as a
+    // target and a handful near it: every target whose box is within reach
+    // (a contact) and, nearest box first, any that may still be the
+    // nearest target or the nearest rigid one (the tie at any gap). One
+    // left out is outside its box, so outside it, and farther than those:
+    // `None`, as a target out of reach.
+    let mut hits: Vec<Option<ClosestHit>> = vec![None; n * nt];
+    let mut order: Vec<(f32, usize)> = Vec::with_capacity(nt);
+    for v in 0..n {
+        let q = m.x[v];
+        order.clear();
+        order.extend(surfaces.iter().enumerate().map(|(s, t)| (t.lower_bound(q), s)));
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut nearest, mut nearest_rigid) = (f32::INFINITY, f32::INFINITY);
+        for &(lower, slot) in &order {
+            let rigid = !surfaces[slot].is_deforming();
+            if lower > reach && lower > nearest {
+                if lower > nearest_rigid {
+                    break; // every later box is farther still
+                }
+                if !rigid {
+                    continue;
+                }
+            }
+            let hit = surfaces[slot].closest(q, None);
+            if let Some(h) = hit {
+                nearest = nearest.min(h.distance);
+                if rigid {
+                    nearest_rigid = nearest_rigid.min(h.distance);
+                }
+            }
+            hits[v * nt + slot] = hit;
+        }
+    }
     // Whether vertex `v` may touch target `slot`: within reach, and for a
     // muscle, outside it at rest with every neighbour.
     let outside = |v: usize, slot: usize| hits[v * nt + slot].is_none_or(|h| !h.is_inside());
