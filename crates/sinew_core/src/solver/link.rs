@@ -74,7 +74,12 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     for v in 0..n {
         let q = m.x[v];
         order.clear();
-        order.extend(surfaces.iter().enumerate().map(|(s, t)| (t.lower_bound(q), s)));
+        order.extend(
+            surfaces
+                .iter()
+                .enumerate()
+                .map(|(s, t)| (t.lower_bound(q), s)),
+        );
         order.sort_by(|a, b| a.0.total_cmp(&b.0));
         let (mut nearest, mut nearest_rigid) = (f32::INFINITY, f32::INFINITY);
         for &(lower, slot) in &order {
