@@ -78,7 +78,8 @@ fn asset_root() -> PathBuf {
 }
 
 /// Fits the anatomy to the character and writes the fitted scene with its
-/// skin, unless a fitted scene newer than both is there.
+/// skin, unless a fitted scene newer than the character, the anatomy and
+/// this program is there.
 fn fit_once(assets: &Path) -> Result<(), Box<dyn Error>> {
     let (character, anatomy, fitted) = (
         assets.join(CHARACTER),

@@ -2,8 +2,9 @@
 //! `SINEW_SCREENSHOT=out.png` set, an app with [`SinewUiPlugin`](crate::ui)
 //! (or [`SinewScreenshotPlugin`]) saves its primary window once the
 //! simulation has run `SINEW_SCREENSHOT_FRAME` steps (default 90) with
-//! every scene spawned and every muscle built, and exits ten frames later — how CI and the README's pictures capture the examples
-//! under Xvfb. Without the variable it does nothing.
+//! every scene spawned and every muscle built, and exits ten frames later
+//! — how CI and the README's pictures capture the examples under Xvfb.
+//! Without the variable it does nothing.
 
 use crate::components::{Muscle, MuscleState};
 use crate::scene::SpawnedScene;

@@ -145,6 +145,10 @@ impl<'w, 's> GltfCharacters<'w, 's> {
         clip: Handle<AnimationClip>,
         seconds: f32,
     ) -> Result<AnimationNodeIndex, CharacterJointError> {
+        // NaN or ≤ 0: no blend.
+        if seconds.is_nan() || seconds <= 0.0 {
+            return self.play_looped(root, clip);
+        }
         let player_entity = self.animation_player(root)?;
         // The joints' pose now, held: one constant curve per channel.
         let mut rest = AnimationClip::default();
@@ -184,19 +188,13 @@ impl<'w, 's> GltfCharacters<'w, 's> {
         let blend = ClipBlendIn {
             from,
             to,
-            seconds: seconds.max(0.0),
+            seconds,
             elapsed: 0.0,
         };
-        if blend.seconds == 0.0 {
-            player.stop(from);
-            player.animation_mut(to).map(|a| a.set_weight(1.0));
-        }
         let graph = AnimationGraphHandle(self.graphs.add(graph));
-        let mut e = self.commands.entity(player_entity);
-        e.insert((player, graph));
-        if blend.seconds > 0.0 {
-            e.insert(blend);
-        }
+        self.commands
+            .entity(player_entity)
+            .insert((player, graph, blend));
         Ok(to)
     }
 

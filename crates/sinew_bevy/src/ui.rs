@@ -286,7 +286,6 @@ fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {
     );
 }
 
-#[cfg(feature = "debug")]
 /// Which layers are drawn; see-through skin.
 fn view_toggles(ui: &mut egui::Ui, view: &mut ResMut<crate::view::SinewView>) {
     // Edit a copy so an untouched panel does not mark the view changed.
@@ -362,6 +361,7 @@ fn skin_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
     }
 }
 
+#[cfg(feature = "debug")]
 fn debug_toggles(ui: &mut egui::Ui, v: &mut crate::debug::SinewDebugView) {
     ui.checkbox(&mut v.fibers, "fibres (by activation)");
     ui.checkbox(&mut v.internal, "internal structure");

@@ -367,12 +367,14 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
     // vertex outside a bone's box by `d` is at least `d` from the bone, a
     // test that reads a few bytes instead of the target (a skin vertex has
     // every bone of the body as a target).
-    let mut boxes = std::mem::take(&mut ws.bone_boxes);
-    boxes.clear();
-    boxes.extend((0..nt).filter(|&s| c.rigid[s]).filter_map(|s| {
-        let (lo, hi) = targets.target(ws.target_ids[s]).world_box()?;
-        Some((s, lo, hi))
-    }));
+    if first_of_substep || ws.bone_boxes.is_empty() {
+        let boxes = (0..nt).filter(|&s| c.rigid[s]).filter_map(|s| {
+            let (lo, hi) = targets.target(ws.target_ids[s]).world_box()?;
+            Some((s, lo, hi))
+        });
+        ws.bone_boxes.clear();
+        ws.bone_boxes.extend(boxes);
+    }
     for i in 0..c.len() {
         let v = c.particle[i].index();
         if m.w[v] == 0.0 {
@@ -385,7 +387,8 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
         // The smallest remaining clearance over this vertex's bones.
         let mut margin = f32::INFINITY;
         let q = Vec3A::from(m.p[v]);
-        for &(slot, lo, hi) in &boxes {
+        for b in 0..ws.bone_boxes.len() {
+            let (slot, lo, hi) = ws.bone_boxes[b];
             let cell = i * nt + slot;
             if !c.rest_outside[cell] {
                 continue;
@@ -435,5 +438,4 @@ pub fn bone_contacts<T: TargetSet + ?Sized>(
         };
         ws.bone_margin[i] = m.p[v].extend(margin);
     }
-    ws.bone_boxes = boxes;
 }

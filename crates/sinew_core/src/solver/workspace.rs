@@ -46,9 +46,9 @@ pub struct MuscleWorkspace {
     /// substep's first check, and how far it can move from there before one
     /// of its `clearance` cells needs a check.
     pub(crate) bone_margin: Vec<Vec4>,
-    /// Bone contacts' packed world boxes of the muscle's bones, rebuilt at
-    /// every call (kept here so the step allocates nothing): `(target
-    /// slot, min, max)`.
+    /// Bone contacts' packed world boxes of the muscle's bones, `(target
+    /// slot, min, max)`: rebuilt in a substep's first iteration (bones are
+    /// posed once per substep) and after a relink (emptied).
     pub(crate) bone_boxes: Vec<(usize, Vec3A, Vec3A)>,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
@@ -71,6 +71,7 @@ impl MuscleWorkspace {
         self.bone_margin.clear();
         self.bone_margin
             .resize(m.constraints.sliding.len(), Vec4::ZERO);
+        self.bone_boxes.clear();
     }
 
     /// The colour plan in use, if any (for reports and debug views).
