@@ -322,7 +322,7 @@ pub(crate) fn place_scenes_on_characters(
         }
         let brings_skin = states
             .iter_many(&spawned.muscles)
-            .any(|s| s.muscle.params.is_surface_layer() && !s.muscle.binding.is_empty());
+            .any(|s| s.muscle.is_skin());
         if let Some(view) = view.as_deref_mut().filter(|_| brings_skin) {
             view.character_skin = false;
         }

@@ -88,7 +88,7 @@ fn write_scene(
     let built = fitted
         .scene
         .instantiate(out.parent().unwrap_or(Path::new("")))?;
-    let anatomy_muscles = built.muscles().iter().filter(|m| m.binding.is_empty());
+    let anatomy_muscles = built.muscles().iter().filter(|m| !m.is_skin());
     let (outside, all) = anatomy_muscles.fold((0, 0), |(o, a), m| {
         let points = m.surface_positions();
         (o + skin.count_outside(points), a + points.len())

@@ -59,6 +59,14 @@ pub struct Limits {
     /// position, in millimetres (scenes with a skin).
     #[arg(long, default_value_t = 2.0)]
     pub max_skin_bind_mm: f32,
+    /// Smallest skin bulge over a muscle active at `--bulge-activation` or
+    /// more: the skin's largest outward displacement from the plain skinned
+    /// surface over it, in millimetres (scenes with a skin).
+    #[arg(long, default_value_t = 5.0)]
+    pub min_skin_bulge_mm: f32,
+    /// Activation from which a muscle's skin bulge is measured (0–1).
+    #[arg(long, default_value_t = 0.8)]
+    pub bulge_activation: f32,
 }
 
 impl From<Limits> for Thresholds {
@@ -75,6 +83,7 @@ impl From<Limits> for Thresholds {
             settle: l.settle,
             skin_inside: l.max_skin_inside_pct * 1e-2,
             skin_bind: l.max_skin_bind_mm * 1e-3,
+            skin_bulge: l.min_skin_bulge_mm * 1e-3,
             ..Self::default()
         }
     }
@@ -107,6 +116,10 @@ pub struct CheckArgs {
 /// Runs the scene and prints the report; the exit code is non-zero when a
 /// judged figure is out of range.
 pub fn run(args: &CheckArgs) -> Result<ExitCode> {
+    let a = args.limits.bulge_activation;
+    if !(0.0..=1.0).contains(&a) {
+        return Err(format!("--bulge-activation {a}: an activation is in [0, 1]").into());
+    }
     let (mut scene, base) = load_scene(&args.scene)?;
     if args.still {
         scene.hold_first_pose();
@@ -116,6 +129,7 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     let frames = args.frames.unwrap_or(scene.frames.max(1));
     let mut metrics = RunMetrics::new(&solver, args.depth_mm * 1e-3);
     metrics.penetration_every = args.every.max(1);
+    metrics.bulge_activation = args.limits.bulge_activation;
     let mut sensor_ranges: Vec<(String, [f32; 2], [f32; 2])> = Vec::new();
     let start = Instant::now();
     for _ in 0..frames {
@@ -148,6 +162,20 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
         metrics.jiggle_rms()
     )?;
     muscle_tables(&mut out, &metrics, &solver)?;
+    let muscles = solver.muscles();
+    for (b, frame) in &metrics.skin_bulges {
+        writeln!(
+            out,
+            "bulge of {} over {:<12} a {:.2}  max {:.2} mm (vertex {})  median {:.2} mm over {} vertices  (frame {frame})",
+            muscles[b.skin].name,
+            muscles[b.muscle].name,
+            b.activation,
+            b.max * 1e3,
+            b.vertex,
+            b.median * 1e3,
+            b.vertices
+        )?;
+    }
     for (name, value, velocity) in &sensor_ranges {
         writeln!(
             out,

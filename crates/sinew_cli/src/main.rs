@@ -115,6 +115,12 @@ enum Command {
         /// Leave the bones out.
         #[arg(long)]
         no_bones: bool,
+        /// How a skin is drawn (scenes with a simulated skin).
+        #[arg(long, value_enum, default_value = "simulated")]
+        skin: render::SkinDraw,
+        /// Frame this muscle, skin or bone (by name) instead of every muscle.
+        #[arg(long)]
+        focus: Option<String>,
         /// Output PNG.
         #[arg(long)]
         out: PathBuf,
@@ -155,8 +161,21 @@ fn main() -> ExitCode {
             width,
             height,
             no_bones,
+            skin,
+            focus,
             out,
-        } => render::run(&scene, frame, view, (width, height), !no_bones, &out),
+        } => render::run(
+            &scene,
+            frame,
+            &render::RenderOptions {
+                view,
+                size: (width, height),
+                bones: !no_bones,
+                skin,
+                focus,
+            },
+            &out,
+        ),
         Command::Check(args) => check::run(&args),
         Command::ImportMakehuman { dir, args } => character::run(&dir, &args),
         Command::Fit(args) => character::fit(&args),

@@ -1,9 +1,10 @@
 //! `render`: a small software rasteriser (z-buffer, Lambert shading) that
-//! draws a scene's bones and muscles at a chosen frame into a PNG — no GPU,
-//! no window, so it runs in CI and over SSH.
+//! draws a scene's bones, muscles and skin at a chosen frame into a PNG —
+//! no GPU, no window, so it runs in CI and over SSH.
 
 use crate::commands::load_solver;
 use sinew_core::Solver;
+use sinew_core::analysis::skinned_surface;
 use sinew_core::closest::TargetSource;
 use sinew_core::glam::{Mat3, Vec2, Vec3};
 use std::error::Error;
@@ -36,13 +37,91 @@ impl View {
     }
 }
 
+/// How a skin (a body bound to the skeleton) is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SkinDraw {
+    /// The simulated skin.
+    Simulated,
+    /// The character's plain skinning (linear blend, no simulation).
+    Skinned,
+    /// The simulated skin coloured by how far it stands out of the plain
+    /// skinned surface: red outward, blue inward, white at 0, full colour
+    /// at ±10 mm.
+    Displacement,
+    /// Side by side: plain skinning on the left, the simulated skin
+    /// coloured by displacement on the right.
+    Compare,
+    /// Left out (the muscles under it show).
+    Hidden,
+}
+
+/// What `render` draws and how it frames it.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Camera direction.
+    pub view: View,
+    /// Image size in pixels.
+    pub size: (u32, u32),
+    /// Draw the bones.
+    pub bones: bool,
+    /// How skins are drawn.
+    pub skin: SkinDraw,
+    /// Frame this muscle, skin or bone instead of every muscle.
+    pub focus: Option<String>,
+}
+
 /// One coloured triangle in world space.
 struct Tri {
     p: [Vec3; 3],
     color: [f32; 3],
 }
 
-fn collect(solver: &Solver, bones: bool) -> Vec<Tri> {
+/// Skin colour of the simulated and the plainly skinned skin.
+const SKIN_COLOR: [f32; 3] = [0.86, 0.68, 0.58];
+
+/// Outward displacement (m) at which [`SkinDraw::Displacement`] reaches its
+/// full colour.
+const DISPLACEMENT_SCALE: f32 = 0.010;
+
+/// White at 0, red at `+1`, blue at `−1` (clamped).
+fn diverging(t: f32) -> [f32; 3] {
+    let t = t.clamp(-1.0, 1.0);
+    if t >= 0.0 {
+        [1.0, 1.0 - 0.8 * t, 1.0 - 0.85 * t]
+    } else {
+        [1.0 + 0.85 * t, 1.0 + 0.55 * t, 1.0]
+    }
+}
+
+/// The triangles of a skin drawn as `skin` says.
+fn skin_triangles(
+    solver: &Solver,
+    m: &sinew_core::muscle::Muscle,
+    skin: SkinDraw,
+    tris: &mut Vec<Tri>,
+) {
+    let pose = |b: usize| solver.bones()[b].transform;
+    let skinned = skinned_surface(m, &pose);
+    for tri in &m.mesh.triangles {
+        let v = tri.map(|i| i as usize);
+        let (p, color) = match skin {
+            SkinDraw::Hidden => return,
+            SkinDraw::Simulated => (v.map(|i| m.x[i]), SKIN_COLOR),
+            SkinDraw::Skinned => (v.map(|i| skinned[i].0), SKIN_COLOR),
+            SkinDraw::Displacement | SkinDraw::Compare => {
+                let outward = v
+                    .iter()
+                    .map(|&i| (m.x[i] - skinned[i].0).dot(skinned[i].1) / m.length_unit)
+                    .sum::<f32>()
+                    / 3.0;
+                (v.map(|i| m.x[i]), diverging(outward / DISPLACEMENT_SCALE))
+            }
+        };
+        tris.push(Tri { p, color });
+    }
+}
+
+fn collect(solver: &Solver, bones: bool, skin: SkinDraw) -> Vec<Tri> {
     let mut tris = Vec::new();
     if bones {
         for t in solver.targets() {
@@ -63,6 +142,10 @@ fn collect(solver: &Solver, bones: bool) -> Vec<Tri> {
         }
     }
     for m in solver.muscles() {
+        if m.is_skin() {
+            skin_triangles(solver, m, skin, &mut tris);
+            continue;
+        }
         // Relaxed muscle: dusty red; active: bright red.
         let a = m.params.activation.clamp(0.0, 1.0);
         let color = [0.55 + 0.4 * a, 0.22 - 0.1 * a, 0.2 - 0.08 * a];
@@ -76,33 +159,95 @@ fn collect(solver: &Solver, bones: bool) -> Vec<Tri> {
     tris
 }
 
-/// Renders the solver's current state. `focus` frames the muscles only.
-pub fn draw(solver: &Solver, view: View, width: u32, height: u32, bones: bool) -> Vec<u8> {
-    let tris = collect(solver, bones);
-    // Camera basis: looking along −dir, Y up.
-    let back = view.direction();
-    let right = Vec3::Y.cross(back).normalize();
-    let up = back.cross(right);
-    let to_camera = Mat3::from_cols(right, up, back).transpose();
-    // Frame the muscles (bones may extend far beyond them).
+/// The points the camera frames: those of the body named `focus`, else
+/// every muscle's (bones may extend far beyond them), else everything drawn.
+fn framed_points(solver: &Solver, focus: Option<&str>, tris: &[Tri]) -> Result<Vec<Vec3>> {
+    if let Some(name) = focus {
+        if let Some(m) = solver.muscles().iter().find(|m| m.name == name) {
+            return Ok(m.x[..m.surface_count].to_vec());
+        }
+        if let Some(t) = solver.targets().iter().find(|t| t.name == name) {
+            return Ok(t
+                .positions
+                .iter()
+                .map(|&p| t.transform.transform_point3(p))
+                .collect());
+        }
+        return Err(
+            format!("--focus {name}: the scene has no muscle, skin or bone of that name").into(),
+        );
+    }
     let muscle_points: Vec<Vec3> = solver
         .muscles()
         .iter()
         .flat_map(|m| m.x[..m.surface_count].iter().copied())
         .collect();
-    let framed = if muscle_points.is_empty() {
+    Ok(if muscle_points.is_empty() {
         tris.iter().flat_map(|t| t.p).collect()
     } else {
         muscle_points
-    };
+    })
+}
+
+/// Renders the solver's current state as RGB pixels (`options.size`);
+/// [`SkinDraw::Compare`] draws two halves from the same camera.
+pub fn draw(solver: &Solver, options: &RenderOptions) -> Result<Vec<u8>> {
+    let (width, height) = options.size;
+    if options.skin != SkinDraw::Compare {
+        let tris = collect(solver, options.bones, options.skin);
+        let framed = framed_points(solver, options.focus.as_deref(), &tris)?;
+        let camera = (options.view, margin(options.focus.as_deref()));
+        return Ok(rasterise(&tris, &framed, camera, width, height));
+    }
+    let half = (width / 2).max(1);
+    let halves = [SkinDraw::Skinned, SkinDraw::Displacement].map(|skin| {
+        let tris = collect(solver, options.bones, skin);
+        framed_points(solver, options.focus.as_deref(), &tris).map(|framed| {
+            let camera = (options.view, margin(options.focus.as_deref()));
+            rasterise(&tris, &framed, camera, half, height)
+        })
+    });
+    let [left, right] = halves;
+    let (left, right) = (left?, right?);
+    let mut rgb = vec![0u8; width as usize * height as usize * 3];
+    let row = half as usize * 3;
+    for y in 0..height as usize {
+        let out = &mut rgb[y * width as usize * 3..];
+        out[..row].copy_from_slice(&left[y * row..(y + 1) * row]);
+        out[row..2 * row].copy_from_slice(&right[y * row..(y + 1) * row]);
+    }
+    Ok(rgb)
+}
+
+/// How much wider than what it frames the picture is: a little with every
+/// muscle in view, twice as wide around a focused body (to see what is
+/// around it).
+fn margin(focus: Option<&str>) -> f32 {
+    if focus.is_some() { 2.0 } else { 1.15 }
+}
+
+/// Draws `tris` seen from `view`, framing `framed` (the picture `margin`
+/// times as wide).
+fn rasterise(
+    tris: &[Tri],
+    framed: &[Vec3],
+    (view, margin): (View, f32),
+    width: u32,
+    height: u32,
+) -> Vec<u8> {
+    // Camera basis: looking along −dir, Y up.
+    let back = view.direction();
+    let right = Vec3::Y.cross(back).normalize();
+    let up = back.cross(right);
+    let to_camera = Mat3::from_cols(right, up, back).transpose();
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for p in &framed {
+    for p in framed {
         let c = to_camera * *p;
         lo = lo.min(c);
         hi = hi.max(c);
     }
     let center = (lo + hi) * 0.5;
-    let extent = (hi - lo).truncate().max_element().max(1e-6) * 1.15;
+    let extent = (hi - lo).truncate().max_element().max(1e-6) * margin;
     let scale = width.min(height) as f32 / extent;
     let (w, h) = (width as usize, height as usize);
     let mut depth = vec![f32::NEG_INFINITY; w * h];
@@ -119,8 +264,9 @@ pub fn draw(solver: &Solver, view: View, width: u32, height: u32, bones: bool) -
             rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&c);
         }
     }
-    let light = Vec3::new(0.4, 0.7, 0.6).normalize();
-    for t in &tris {
+    // A light over the camera's shoulder: every view is lit from the front.
+    let light = (back + 0.6 * up + 0.3 * right).normalize();
+    for t in tris {
         let c = t.p.map(|p| to_camera * p - center);
         let s = c.map(|p| {
             (
@@ -192,20 +338,14 @@ pub fn write_png(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<()>
 }
 
 /// Simulates `frame` frames of `scene` and renders the result.
-pub fn run(
-    scene: &str,
-    frame: u32,
-    view: View,
-    size: (u32, u32),
-    bones: bool,
-    out: &Path,
-) -> Result<ExitCode> {
+pub fn run(scene: &str, frame: u32, options: &RenderOptions, out: &Path) -> Result<ExitCode> {
     let (_, mut solver) = load_solver(scene)?;
     for _ in 0..frame {
         solver.step();
     }
-    let rgb = draw(&solver, view, size.0, size.1, bones);
-    write_png(out, &rgb, size.0, size.1)?;
-    println!("{}: frame {frame}, {}×{}", out.display(), size.0, size.1);
+    let rgb = draw(&solver, options)?;
+    let (width, height) = options.size;
+    write_png(out, &rgb, width, height)?;
+    println!("{}: frame {frame}, {width}×{height}", out.display());
     Ok(ExitCode::SUCCESS)
 }

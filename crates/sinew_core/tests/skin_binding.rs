@@ -8,6 +8,7 @@
 //! the rest of the skin follows its bones — every method, same bits for any
 //! thread count.
 
+use sinew_core::analysis::{RunMetrics, Thresholds, skin_bulges};
 use sinew_core::animation::{TransformKey, TransformTrack};
 use sinew_core::character::primitives::two_bone_arm;
 use sinew_core::glam::{Quat, Vec3};
@@ -244,6 +245,55 @@ fn the_skin_follows_its_bones_and_bulges_over_the_muscle() {
             "{method:?}: the wrist's skin is {wrist} m off"
         );
     }
+}
+
+/// `analysis::skin_bulges` and `check`'s "skin bulge" figure see the same
+/// bulge: none at rest (the skin is where skinning puts it), ≥ 5 mm over
+/// the contracted biceps, nothing measured while no muscle is active enough.
+#[test]
+fn the_bulge_figure_measures_the_skin_over_the_active_muscle() {
+    let mut solver = arm(SolverMethod::Sequential, 2);
+    let mut metrics = RunMetrics::new(&solver, 0.002);
+    let observe_to = |solver: &mut Solver, metrics: &mut RunMetrics, until: u32| {
+        while solver.frame() < until as u64 {
+            run(solver, solver.frame() as u32 + 1);
+            metrics.observe(solver);
+        }
+    };
+    observe_to(&mut solver, &mut metrics, 60);
+    assert!(skin_bulges(&solver, 0.8).is_empty(), "no muscle is active");
+    let rest = skin_bulges(&solver, 0.0);
+    assert_eq!(rest.len(), 1, "the skin lies over the biceps alone");
+    assert!(rest[0].max.abs() < 2e-3, "at rest: {:?}", rest[0]);
+    let judged = |metrics: &RunMetrics, solver: &Solver| {
+        metrics
+            .verdicts(solver, &Thresholds::default(), f32::INFINITY)
+            .into_iter()
+            .find(|v| v.figure == "skin bulge")
+            .expect("a scene with a skin has a bulge figure")
+    };
+    assert_eq!(judged(&metrics, &solver).pass, None, "nothing to judge yet");
+
+    observe_to(&mut solver, &mut metrics, 210);
+    let flexed = skin_bulges(&solver, 0.8);
+    assert_eq!(flexed.len(), 1);
+    let b = flexed[0];
+    eprintln!("flexed: {b:?}");
+    assert_eq!((b.skin, b.muscle, b.activation), (1, 0, 1.0));
+    assert!(b.max >= 5e-3 && b.max >= b.median, "{b:?}");
+    let verdict = judged(&metrics, &solver);
+    assert_eq!(verdict.pass, Some(true), "{verdict:?}");
+    let strict = Thresholds {
+        skin_bulge: 2.0 * b.max.max(metrics.skin_bulges[0].0.max),
+        ..Thresholds::default()
+    };
+    let failed = metrics.verdicts(&solver, &strict, f32::INFINITY);
+    assert!(
+        failed
+            .iter()
+            .any(|v| v.figure == "skin bulge" && v.pass == Some(false)),
+        "twice the bulge is out of range"
+    );
 }
 
 #[test]

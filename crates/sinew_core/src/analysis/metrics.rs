@@ -1,7 +1,10 @@
 //! [`RunMetrics`]: the figures of a run, gathered one frame at a time.
 
 use super::shape::{RestDeviation, ShapeReference};
-use super::{attachment_errors, belly_cross_section, penetrating_vertices, skin_inside_vertices};
+use super::{
+    SkinBulge, attachment_errors, belly_cross_section, penetrating_vertices, skin_bulges,
+    skin_inside_vertices,
+};
 use crate::solver::Solver;
 use glam::{Affine3A, Vec3};
 use std::collections::VecDeque;
@@ -30,6 +33,12 @@ pub struct RunMetrics {
     pub skin_inside_max: Option<f32>,
     /// Frame of that share.
     pub skin_inside_frame: u32,
+    /// Per muscle under a skin that reached [`RunMetrics::bulge_activation`]
+    /// in a checked frame: the skin's largest bulge over it
+    /// ([`SkinBulge`]) and that frame, in the order first seen.
+    pub skin_bulges: Vec<(SkinBulge, u32)>,
+    /// Activation from which a muscle's skin bulge is measured. Default: `0.8`.
+    pub bulge_activation: f32,
     /// Per muscle: (min, max) of volume / rest volume.
     pub volume_ratio: Vec<(f64, f64)>,
     /// Per muscle: largest activation seen.
@@ -174,6 +183,8 @@ impl RunMetrics {
             depth,
             skin_inside_max: None,
             skin_inside_frame: 0,
+            skin_bulges: Vec::new(),
+            bulge_activation: 0.8,
             volume_ratio: vec![(f64::INFINITY, f64::NEG_INFINITY); n],
             activation_max: vec![0.0; n],
             rest_section: (0..n).map(|m| belly_cross_section(solver, m)).collect(),
@@ -250,6 +261,7 @@ impl RunMetrics {
                     self.skin_inside_max = Some(share);
                     self.skin_inside_frame = frame;
                 }
+                self.observe_bulges(solver, frame);
             }
         }
         for (i, m) in solver.muscles().iter().enumerate() {
@@ -262,6 +274,22 @@ impl RunMetrics {
                 self.activation_max[i] = a;
                 let section = belly_cross_section(solver, i);
                 self.section_at_peak[i] = (a, section / self.rest_section[i].max(1e-12));
+            }
+        }
+    }
+
+    /// Keeps, per active muscle under a skin, the frame of the skin's
+    /// largest bulge over it.
+    fn observe_bulges(&mut self, solver: &Solver, frame: u32) {
+        for bulge in skin_bulges(solver, self.bulge_activation) {
+            let seen = self
+                .skin_bulges
+                .iter_mut()
+                .find(|(b, _)| (b.skin, b.muscle) == (bulge.skin, bulge.muscle));
+            match seen {
+                Some(peak) if peak.0.max >= bulge.max => {}
+                Some(peak) => *peak = (bulge, frame),
+                None => self.skin_bulges.push((bulge, frame)),
             }
         }
     }

@@ -3,15 +3,21 @@
 //! activation and belly cross-section), whether muscles keep their shape
 //! (edge strain, flipped triangles, deviation from rest: [`ShapeReference`])
 //! and whether they come to rest (velocity, kinetic energy and acceleration
-//! over the last second), collected frame by frame; [`Thresholds`] and
+//! over the last second) and how a simulated skin sits (inside what it
+//! slides on, off its skinned position, its bulge over active muscles),
+//! collected frame by frame; [`Thresholds`] and
 //! [`RunMetrics::verdicts`] judge them.
 
 mod metrics;
 mod shape;
+mod skin;
 mod verdict;
 
 pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
 pub use shape::{RestDeviation, ShapeReference, ShapeSample};
+pub use skin::{
+    SkinBulge, skin_bind_distances, skin_bulges, skin_inside_vertices, skinned_surface,
+};
 pub use verdict::{Thresholds, Verdict};
 
 use crate::closest::{TargetSource, TargetSurface};
@@ -138,53 +144,6 @@ fn inside_by(target: &TargetSurface, x: Vec3, depth: f32) -> bool {
         && target
             .closest_within(x, None, f32::INFINITY)
             .is_some_and(|h| h.signed_distance < -depth && target.contains(x))
-}
-
-/// The bodies with a skin binding (skins: [`crate::muscle::Muscle::binding`]
-/// not empty), with their indices.
-fn skins(solver: &Solver) -> impl Iterator<Item = (usize, &crate::muscle::Muscle)> {
-    solver
-        .muscles()
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| !m.binding.is_empty())
-}
-
-/// Per body with a skin binding, `(body, surface vertices inside one of its
-/// own targets — a muscle or a bone it slides on —, surface vertices)`;
-/// bodies without a binding are left out.
-pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
-    skins(solver)
-        .map(|(i, m)| {
-            // The solver's own resolution of the body's targets.
-            let targets: Vec<&TargetSurface> = solver.workspaces()[i]
-                .target_ids
-                .iter()
-                .map(|t| &solver.targets()[t.index()])
-                .collect();
-            let inside = m.x[..m.surface_count]
-                .iter()
-                .filter(|&&x| targets.iter().any(|t| inside_by(t, x, 0.0)))
-                .count();
-            (i, inside, m.surface_count)
-        })
-        .collect()
-}
-
-/// Per body with a skin binding, `(body, largest distance of a bound vertex
-/// from its skinned position)` for the bones' current poses. Units: m.
-pub fn skin_bind_distances(solver: &Solver) -> Vec<(usize, f32)> {
-    let pose = |b: usize| solver.bones()[b].transform;
-    skins(solver)
-        .map(|(i, m)| {
-            let far = m
-                .binding
-                .iter()
-                .map(|b| (m.x[b.vertex.index()] - b.goal(&pose)).length() / m.length_unit)
-                .fold(0.0, f32::max);
-            (i, far)
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -46,6 +46,11 @@ pub struct Thresholds {
     /// At rest: largest distance of a skin vertex from its skinned position.
     /// Units: m. Default: `0.002`.
     pub skin_bind: f32,
+    /// Smallest skin bulge over an active muscle (the largest outward
+    /// displacement from the plain skinned surface, see
+    /// [`super::SkinBulge`]), judged when a muscle under a skin reached
+    /// [`RunMetrics::bulge_activation`]. Units: m. Default: `0.005`.
+    pub skin_bulge: f32,
 }
 
 impl Default for Thresholds {
@@ -64,6 +69,7 @@ impl Default for Thresholds {
             settle: 2.0,
             skin_inside: 0.005,
             skin_bind: 0.002,
+            skin_bulge: 0.005,
         }
     }
 }
@@ -147,6 +153,30 @@ impl RunMetrics {
                 ),
                 format!("≤ {} %", limits.skin_inside * 100.0),
                 Some(share <= limits.skin_inside),
+            );
+            let peak = self
+                .skin_bulges
+                .iter()
+                .max_by(|a, b| a.0.max.total_cmp(&b.0.max));
+            push(
+                "skin bulge",
+                match peak {
+                    Some((b, frame)) => format!(
+                        "{:.2} mm over {} (a {:.2}, frame {}; median {:.2} mm over {} vertices)",
+                        b.max * 1e3,
+                        name(b.muscle),
+                        b.activation,
+                        frame,
+                        b.median * 1e3,
+                        b.vertices
+                    ),
+                    None => format!(
+                        "no muscle under the skin reached a ≥ {}",
+                        self.bulge_activation
+                    ),
+                },
+                format!("≥ {:.1} mm", limits.skin_bulge * 1e3),
+                peak.map(|(b, _)| b.max >= limits.skin_bulge),
             );
         }
         let gain = |i: usize| {

@@ -11,6 +11,7 @@
 //! [`Compliances::bind`](super::Compliances::bind) ÷ the vertex's strength.
 
 use super::Muscle;
+use crate::closest::TargetSurface;
 use crate::constraints::{ParticleId, PointBatch};
 use crate::error::BuildError;
 use glam::{Affine3A, Vec3};
@@ -62,6 +63,65 @@ impl BoundVertex {
 }
 
 impl SkinBindingDesc {
+    /// The binding [`super::MuscleParams::hold_shape`] gives a muscle with
+    /// surface `positions` (rest, world) and held vertices `held` (`(bone,
+    /// vertex)`, `None` for a world point): every vertex bound to the bones
+    /// around it — those it is attached to and the bones in `surfaces`
+    /// (bone index and its surface, posed as at rest) — weighted by the
+    /// inverse square of its distance to each (to the bone's surface, or to
+    /// its nearest held vertex on that bone, whichever is nearer), the
+    /// [`MAX_BONES`] largest kept. A forearm muscle attached to the humerus
+    /// and the hand follows the radius and the ulna it lies on, not a blend
+    /// of the two ends (which would cut across a bent elbow). `None` when
+    /// there is no bone.
+    pub fn holding_shape(
+        positions: &[Vec3],
+        held: &[(Option<usize>, u32)],
+        surfaces: &[(usize, &TargetSurface)],
+    ) -> Option<Self> {
+        let mut bones: Vec<usize> = held
+            .iter()
+            .filter_map(|&(b, _)| b)
+            .chain(surfaces.iter().map(|&(b, _)| b))
+            .collect();
+        bones.sort_unstable();
+        bones.dedup();
+        if bones.is_empty() {
+            return None;
+        }
+        let influences = positions
+            .iter()
+            .map(|&x| {
+                let mut weights: Vec<(usize, f32)> = bones
+                    .iter()
+                    .map(|&bone| {
+                        let to_held = held
+                            .iter()
+                            .filter(|&&(b, _)| b == Some(bone))
+                            .map(|&(_, v)| positions[v as usize].distance(x))
+                            .fold(f32::INFINITY, f32::min);
+                        let to_surface = surfaces
+                            .iter()
+                            .filter(|&&(b, _)| b == bone)
+                            .filter_map(|(_, t)| t.closest(x, None))
+                            .map(|hit| hit.point.distance(x))
+                            .fold(f32::INFINITY, f32::min);
+                        let d = to_held.min(to_surface);
+                        (bone, 1.0 / (d * d).max(f32::MIN_POSITIVE.sqrt()))
+                    })
+                    .collect();
+                weights.sort_by(|a, b| b.1.total_cmp(&a.1));
+                weights.truncate(MAX_BONES);
+                let sum: f32 = weights.iter().map(|w| w.1).sum();
+                weights.iter().map(|&(b, w)| (b, w / sum)).collect()
+            })
+            .collect();
+        Some(Self {
+            influences,
+            strength: Vec::new(),
+        })
+    }
+
     /// Checks the desc against a surface at the rest `positions` (one list
     /// and strength per vertex, weights ≥ 0 summing to 1, strengths finite
     /// and ≥ 0) and resolves it with the bones at `bone_transform`, which

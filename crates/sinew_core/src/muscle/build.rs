@@ -128,6 +128,12 @@ impl Muscle {
         // Particles.
         let mut rest = mesh.positions.clone();
         rest.extend_from_slice(&structure.points);
+        let binding = binding.or_else(|| {
+            params
+                .hold_shape
+                .then(|| SkinBindingDesc::holding_shape(&mesh.positions, &held, &[]))
+                .flatten()
+        });
         let binding = match &binding {
             Some(desc) => desc.resolve(&name, &mesh.positions, &bone_transform)?,
             None => Vec::new(),

@@ -351,6 +351,14 @@ pub struct Muscle {
 }
 
 impl Muscle {
+    /// Whether this body is a skin: a surface layer
+    /// ([`MuscleParams::is_surface_layer`]) bound to the skeleton. A muscle
+    /// that holds its shape ([`MuscleParams::hold_shape`]) is bound too,
+    /// but is no skin.
+    pub fn is_skin(&self) -> bool {
+        self.params.is_surface_layer() && !self.binding.is_empty()
+    }
+
     /// [`MuscleParams::contact_reach`] in scene units.
     pub fn contact_reach(&self) -> f32 {
         self.params.contact_reach * self.length_unit

@@ -110,6 +110,23 @@ pub struct MuscleParams {
     pub internal: InternalStructureParams,
     /// Laplacian smoothing passes of the fibre field. Default: `3`.
     pub fiber_smoothing: u32,
+    /// Holds the muscle's shape on its bones: each surface vertex is bound
+    /// softly (the Bind constraint, compliance [`Compliances::bind`] ÷ its
+    /// strength) to its rest position carried by the bones around it — its
+    /// attachment bones and the bones it targets — blended by the inverse
+    /// square of its distance to each
+    /// ([`crate::muscle::SkinBindingDesc::holding_shape`]; a muscle built
+    /// on its own, without the solver's bone surfaces, by its distance to
+    /// each attachment bone's held vertices) — what fascia and the tissue
+    /// around a muscle do.
+    /// Without it, a region that no target is within reach of hangs on the
+    /// muscle's own edges and sags under gravity (the edges of a forearm
+    /// muscle stretch ×24 in 10 frames on T7). The fibres and the volume
+    /// still shorten and bulge the muscle. Ignored for a muscle given an
+    /// explicit binding, and for one with no attachment on a bone.
+    /// Default: `false` (`sinew fit` turns it on).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub hold_shape: bool,
 }
 
 impl Default for MuscleParams {
@@ -132,6 +149,7 @@ impl Default for MuscleParams {
             mass: MassMode::default(),
             internal: InternalStructureParams::default(),
             fiber_smoothing: 3,
+            hold_shape: false,
         }
     }
 }

@@ -49,7 +49,7 @@ use crate::closest::{TargetSource, TargetSurface};
 use crate::constraints::TargetId;
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
-use crate::muscle::{Muscle, MuscleDesc, TargetRef};
+use crate::muscle::{Muscle, MuscleDesc, SkinBindingDesc, TargetRef};
 use crate::sensor::ActivationRig;
 use crate::skeleton::SkeletonRig;
 use glam::Affine3A;
@@ -294,6 +294,10 @@ impl Solver {
                 }
             }
         }
+        let mut desc = desc;
+        if desc.params.hold_shape && desc.binding.is_none() {
+            desc.binding = self.holding_shape(&desc)?;
+        }
         let bones = &self.bones;
         let muscle = Muscle::build(desc, self.settings.length_unit, |b| bones[b].transform)?;
         let mut target = TargetSurface::new(
@@ -309,6 +313,30 @@ impl Solver {
         self.curves.push(None);
         self.links_dirty = true;
         Ok(index)
+    }
+
+    /// The binding of a muscle that holds its shape
+    /// ([`crate::muscle::MuscleParams::hold_shape`]): on its attachment bones
+    /// and the bones it targets, by their surfaces
+    /// ([`SkinBindingDesc::holding_shape`]).
+    fn holding_shape(&self, desc: &MuscleDesc) -> Result<Option<SkinBindingDesc>, BuildError> {
+        let positions = &desc.mesh.positions;
+        let mut held = Vec::new();
+        for (i, a) in desc.attachments.iter().enumerate() {
+            a.for_each_held_vertex(positions, &desc.name, i, |v| held.push((a.bone, v)))?;
+        }
+        let bones = desc
+            .targets
+            .iter()
+            .filter_map(|t| match t {
+                TargetRef::Bone(b) => Some(*b),
+                TargetRef::Muscle(_) => None,
+            })
+            .chain(desc.attachments.iter().filter_map(|a| a.bone));
+        let surfaces: Vec<(usize, &TargetSurface)> = bones
+            .filter_map(|b| self.bones[b].target.map(|t| (b, &self.targets[t])))
+            .collect();
+        Ok(SkinBindingDesc::holding_shape(positions, &held, &surfaces))
     }
 
     fn check_target(

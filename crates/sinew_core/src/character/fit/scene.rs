@@ -58,7 +58,10 @@ impl AnatomyFit {
     ///   joint's frame (`meshes/NAME.obj`); tracks are dropped;
     /// - muscles: their fitted surfaces (`meshes/NAME.obj`, same vertex
     ///   order and polygons), attachments as the vertices the anatomy's
-    ///   resolved to, everything else as in `anatomy`;
+    ///   resolved to, holding their shape on their bones
+    ///   ([`crate::muscle::MuscleParams::hold_shape`]: a limb turned
+    ///   sideways by the clip would otherwise let what no target holds
+    ///   sag out of the skin), everything else as in `anatomy`;
     /// - sensors: their points moved with their bones.
     ///
     /// Errors: an anatomy not in metres (`length_unit` ≠ 1).
@@ -148,6 +151,7 @@ impl AnatomyFit {
                 triangulate: false,
                 scale: 1.0,
             };
+            spec.params.hold_shape = true;
             spec.attachments = m
                 .attachments
                 .iter()
