@@ -47,6 +47,11 @@ pub const ATTRIBUTE_TENDON_MASK: MeshVertexAttribute =
 /// Damping multiplier per vertex (`f32`, `≥ 0`) of the muscle's damping rate.
 pub const ATTRIBUTE_DAMPING_SCALE: MeshVertexAttribute =
     MeshVertexAttribute::new("Sinew_DampingScale", 0x51e3_0007, VertexFormat::Float32);
+/// Thickness per vertex (`f32`, scene units, `≥ 0`) of what lies under a
+/// skin (its fat): how close the vertex may come to what it slides on
+/// ([`VertexMaps::thickness`]).
+pub const ATTRIBUTE_THICKNESS: MeshVertexAttribute =
+    MeshVertexAttribute::new("Sinew_Thickness", 0x51e3_0008, VertexFormat::Float32);
 
 /// Where a mesh's maps come from, beyond the sinew attributes above.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -121,6 +126,7 @@ pub fn surface_and_maps(
         mass: scalar(ATTRIBUTE_MASS_SCALE, None),
         tendon: scalar(ATTRIBUTE_TENDON_MASK, None),
         damping: scalar(ATTRIBUTE_DAMPING_SCALE, None),
+        thickness: scalar(ATTRIBUTE_THICKNESS, None),
     };
     Ok((welded, maps))
 }

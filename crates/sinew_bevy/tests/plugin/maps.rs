@@ -8,7 +8,8 @@ use crate::common;
 
 use bevy::prelude::*;
 use sinew_bevy::mesh_maps::{
-    ATTRIBUTE_DAMPING_SCALE, ATTRIBUTE_HARD_WEIGHT, ATTRIBUTE_SLIDING_WEIGHT, ATTRIBUTE_TENDON_MASK,
+    ATTRIBUTE_DAMPING_SCALE, ATTRIBUTE_HARD_WEIGHT, ATTRIBUTE_SLIDING_WEIGHT,
+    ATTRIBUTE_TENDON_MASK, ATTRIBUTE_THICKNESS,
 };
 use sinew_bevy::prelude::*;
 use sinew_core::BuildError;
@@ -54,6 +55,7 @@ fn vertex_attributes_become_the_muscles_maps() {
             mesh.insert_attribute(ATTRIBUTE_SLIDING_WEIGHT, vec![0.75f32; n]);
             mesh.insert_attribute(ATTRIBUTE_TENDON_MASK, vec![0.25f32; n]);
             mesh.insert_attribute(ATTRIBUTE_DAMPING_SCALE, vec![3.0f32; n]);
+            mesh.insert_attribute(ATTRIBUTE_THICKNESS, vec![0.004f32; n]);
         },
         false,
     );
@@ -64,6 +66,7 @@ fn vertex_attributes_become_the_muscles_maps() {
     assert_eq!(m.maps.sliding.as_deref(), Some(&vec![0.75; n][..]));
     assert_eq!(m.maps.tendon.as_deref(), Some(&vec![0.25; n][..]));
     assert_eq!(m.maps.damping.as_deref(), Some(&vec![3.0; n][..]));
+    assert_eq!(m.maps.thickness.as_deref(), Some(&vec![0.004; n][..]));
     assert!(m.maps.soft.is_none(), "not painted: the default weight");
 }
 

@@ -42,6 +42,7 @@ impl Muscle {
             ("mass", maps.mass.as_ref().map(Vec::len)),
             ("tendon", maps.tendon.as_ref().map(Vec::len)),
             ("damping", maps.damping.as_ref().map(Vec::len)),
+            ("thickness", maps.thickness.as_ref().map(Vec::len)),
         ] {
             if let Some(len) = len.filter(|&l| l != n) {
                 return Err(BuildError::MapLength {

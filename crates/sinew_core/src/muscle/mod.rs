@@ -155,6 +155,16 @@ pub struct VertexMaps {
     /// [`MuscleParams::damping`] (1/s): 0 undamped, 2 twice as damped.
     /// Internal points keep the muscle's rate. Default: none (1 everywhere).
     pub damping: Option<Vec<f32>>,
+    /// Thickness per vertex of what lies under it (a skin's fat): how
+    /// close the vertex may come to the muscles and bones it slides on.
+    /// Its rest gap to each is the smaller of this and its distance at rest
+    /// — fat thinner than the skin's rest distance lets the skin be pressed
+    /// in down to it (in [`crate::constraints::SlidingMode::Contact`]; a
+    /// [`crate::constraints::SlidingMode::KeepGap`] vertex is drawn to
+    /// it). Units: scene units, `≥ 0`. Default: none (the distance at rest
+    /// everywhere).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub thickness: Option<Vec<f32>>,
 }
 
 impl VertexMaps {
@@ -169,6 +179,7 @@ impl VertexMaps {
             mass,
             tendon,
             damping,
+            thickness,
         } = other;
         VertexMaps {
             sliding: self.sliding.or(sliding),
@@ -178,11 +189,12 @@ impl VertexMaps {
             mass: self.mass.or(mass),
             tendon: self.tendon.or(tendon),
             damping: self.damping.or(damping),
+            thickness: self.thickness.or(thickness),
         }
     }
 
     /// Checks every value: weights finite and ≥ 0, mass multipliers
-    /// finite and > 0, fibres finite. `muscle` names the muscle in the
+    /// finite and > 0, thicknesses finite and ≥ 0, fibres finite. `muscle` names the muscle in the
     /// error, which names the map and the vertex.
     pub fn validate(&self, muscle: &str) -> Result<(), BuildError> {
         let bad = |map: &str, vertex: usize, value: f32, reason: &str| BuildError::MapValue {
@@ -224,6 +236,10 @@ impl VertexMaps {
                 d,
                 "a damping multiplier must be finite and ≥ 0",
             ));
+        }
+        let mut thickness = self.thickness.iter().flatten().enumerate();
+        if let Some((v, &t)) = thickness.find(|(_, t)| !(t.is_finite() && **t >= 0.0)) {
+            return Err(bad("thickness", v, t, "a thickness must be finite and ≥ 0"));
         }
         let mut fibers = self.fibers.iter().flatten().enumerate();
         if let Some((v, f)) = fibers.find(|(_, f)| !f.is_finite()) {

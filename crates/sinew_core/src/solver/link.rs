@@ -115,6 +115,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
                         .iter()
                         .all(|&u| outside(u as usize, slot)))
     };
+    let thickness = m.maps.thickness.as_deref();
     for v in 0..n {
         let q = m.x[v];
         let mut nearest: Option<Candidate> = None;
@@ -130,10 +131,11 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
             };
             let touching = touches(v, slot);
             // Sliding never chooses a target out of its band (see
-            // `SlidingBatch::rest_gap`).
+            // `SlidingBatch::rest_gap`); the thickness map caps the gap.
+            let gap = thickness.map_or(h.distance, |t| h.distance.min(t[v]));
             c.sliding
                 .rest_gap
-                .push(if touching { h.distance } else { f32::INFINITY });
+                .push(if touching { gap } else { f32::INFINITY });
             c.sliding.rest_outside.push(!h.is_inside());
             let candidate = Some((slot, h));
             let nearer =
