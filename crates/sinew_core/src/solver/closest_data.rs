@@ -42,6 +42,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
         targets,
         search: ClosestSchedule { walk, ..search },
         reach,
+        walk_on_bones: c.sliding.walk_first_only,
     };
     let run = SlidingRun::of(&mut c.sliding, &mut ws.warm);
     if search.split && run.particle.len() > CLOSEST_CHUNK {
@@ -217,6 +218,9 @@ struct SlidingInput<'a, T: ?Sized> {
     /// The muscle's contact reach: a target farther than this at rest is
     /// never chosen.
     reach: f32,
+    /// A contact layer's nearest point on a bone is only ever walked to,
+    /// never searched for anew once known (see [`crate::constraints::SlidingBatch::walk_first_only`]).
+    walk_on_bones: bool,
 }
 
 impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
@@ -297,6 +301,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 };
                 let cell = &mut warm[i * nt + slot];
                 let last = (*cell != NO_TRIANGLE).then_some(*cell);
+                let full = full && !(self.walk_on_bones && !surface.is_deforming());
                 let local = last.filter(|_| !full).and_then(|t| {
                     if search.walk {
                         surface.walk(q, t)
