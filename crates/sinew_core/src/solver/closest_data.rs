@@ -301,7 +301,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 };
                 let cell = &mut warm[i * nt + slot];
                 let last = (*cell != NO_TRIANGLE).then_some(*cell);
-                let full = full && !(self.walk_on_bones && !surface.is_deforming());
+                let full = full && (surface.is_deforming() || !self.walk_on_bones);
                 let local = last.filter(|_| !full).and_then(|t| {
                     if search.walk {
                         surface.walk(q, t)
