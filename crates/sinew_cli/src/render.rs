@@ -101,11 +101,15 @@ fn skin_triangles(
     tris: &mut Vec<Tri>,
 ) {
     let pose = |b: usize| solver.bones()[b].transform;
-    let skinned = skinned_surface(m, &pose);
+    let skinned = match skin {
+        SkinDraw::Hidden => return,
+        SkinDraw::Simulated => Vec::new(),
+        _ => skinned_surface(m, &pose),
+    };
     for tri in &m.mesh.triangles {
         let v = tri.map(|i| i as usize);
         let (p, color) = match skin {
-            SkinDraw::Hidden => return,
+            SkinDraw::Hidden => unreachable!("left out above"),
             SkinDraw::Simulated => (v.map(|i| m.x[i]), SKIN_COLOR),
             SkinDraw::Skinned => (v.map(|i| skinned[i].0), SKIN_COLOR),
             SkinDraw::Displacement | SkinDraw::Compare => {
@@ -193,22 +197,19 @@ fn framed_points(solver: &Solver, focus: Option<&str>, tris: &[Tri]) -> Result<V
 /// [`SkinDraw::Compare`] draws two halves from the same camera.
 pub fn draw(solver: &Solver, options: &RenderOptions) -> Result<Vec<u8>> {
     let (width, height) = options.size;
+    let focus = options.focus.as_deref();
+    let camera = (options.view, margin(focus));
+    let picture = |skin: SkinDraw, width: u32| -> Result<Vec<u8>> {
+        let tris = collect(solver, options.bones, skin);
+        let framed = framed_points(solver, focus, &tris)?;
+        Ok(rasterise(&tris, &framed, camera, width, height))
+    };
     if options.skin != SkinDraw::Compare {
-        let tris = collect(solver, options.bones, options.skin);
-        let framed = framed_points(solver, options.focus.as_deref(), &tris)?;
-        let camera = (options.view, margin(options.focus.as_deref()));
-        return Ok(rasterise(&tris, &framed, camera, width, height));
+        return picture(options.skin, width);
     }
     let half = (width / 2).max(1);
-    let halves = [SkinDraw::Skinned, SkinDraw::Displacement].map(|skin| {
-        let tris = collect(solver, options.bones, skin);
-        framed_points(solver, options.focus.as_deref(), &tris).map(|framed| {
-            let camera = (options.view, margin(options.focus.as_deref()));
-            rasterise(&tris, &framed, camera, half, height)
-        })
-    });
-    let [left, right] = halves;
-    let (left, right) = (left?, right?);
+    let left = picture(SkinDraw::Skinned, half)?;
+    let right = picture(SkinDraw::Displacement, half)?;
     let mut rgb = vec![0u8; width as usize * height as usize * 3];
     let row = half as usize * 3;
     for y in 0..height as usize {

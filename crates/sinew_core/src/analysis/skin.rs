@@ -164,11 +164,10 @@ fn nearest_target(targets: &[&TargetSurface], x: Vec3) -> Option<usize> {
         if t.lower_bound(x) >= bound {
             continue;
         }
-        if let Some(hit) = t.closest_within(x, None, bound) {
-            let d = (hit.point - x).length();
-            if d < bound {
-                best = Some((d, i));
-            }
+        if let Some(hit) = t.closest_within(x, None, bound)
+            && hit.distance < bound
+        {
+            best = Some((hit.distance, i));
         }
     }
     best.map(|b| b.1)

@@ -70,14 +70,7 @@ impl Muscle {
         }
         // Attachment vertices: one per attachment (its root), plus the rest
         // of a region's.
-        let mut attach_vertices = Vec::with_capacity(attachments.len());
-        let mut held = Vec::with_capacity(attachments.len());
-        for (i, a) in attachments.iter().enumerate() {
-            let root = a.for_each_held_vertex(&mesh.positions, &name, i, |v| {
-                held.push((a.bone, v));
-            })?;
-            attach_vertices.push(root);
-        }
+        let (attach_vertices, held) = held_by(&attachments, &mesh.positions, &name)?;
         // Roots.
         let root_list: Vec<u32> = match &roots {
             Roots::Vertices(v) => v.clone(),

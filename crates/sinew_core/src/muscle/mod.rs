@@ -54,6 +54,26 @@ pub struct AttachmentDesc {
     pub radius: f32,
 }
 
+/// A held vertex and its bone (`None`: a world point).
+type HeldVertex = (Option<usize>, u32);
+
+/// What `attachments` hold on a mesh with vertex `positions`: each
+/// attachment's root, in order, and every held vertex with its bone
+/// (`None`: a world point), attachment by attachment
+/// ([`AttachmentDesc::for_each_held_vertex`]). `muscle` names it in errors.
+pub(crate) fn held_by(
+    attachments: &[AttachmentDesc],
+    positions: &[Vec3],
+    muscle: &str,
+) -> Result<(Vec<u32>, Vec<HeldVertex>), BuildError> {
+    let mut roots = Vec::with_capacity(attachments.len());
+    let mut held = Vec::with_capacity(attachments.len());
+    for (i, a) in attachments.iter().enumerate() {
+        roots.push(a.for_each_held_vertex(positions, muscle, i, |v| held.push((a.bone, v)))?);
+    }
+    Ok((roots, held))
+}
+
 impl AttachmentDesc {
     /// The surface vertices this attachment holds on a mesh with vertex
     /// `positions`, its root (the given vertex, or the one nearest `point`)

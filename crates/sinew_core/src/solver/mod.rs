@@ -321,19 +321,21 @@ impl Solver {
     /// ([`SkinBindingDesc::holding_shape`]).
     fn holding_shape(&self, desc: &MuscleDesc) -> Result<Option<SkinBindingDesc>, BuildError> {
         let positions = &desc.mesh.positions;
-        let mut held = Vec::new();
-        for (i, a) in desc.attachments.iter().enumerate() {
-            a.for_each_held_vertex(positions, &desc.name, i, |v| held.push((a.bone, v)))?;
-        }
-        let bones = desc
+        let (_, held) = crate::muscle::held_by(&desc.attachments, positions, &desc.name)?;
+        // A bone both targeted and attached to is measured once.
+        let mut bones: Vec<usize> = desc
             .targets
             .iter()
             .filter_map(|t| match t {
                 TargetRef::Bone(b) => Some(*b),
                 TargetRef::Muscle(_) => None,
             })
-            .chain(desc.attachments.iter().filter_map(|a| a.bone));
+            .chain(desc.attachments.iter().filter_map(|a| a.bone))
+            .collect();
+        bones.sort_unstable();
+        bones.dedup();
         let surfaces: Vec<(usize, &TargetSurface)> = bones
+            .into_iter()
             .filter_map(|b| self.bones[b].target.map(|t| (b, &self.targets[t])))
             .collect();
         Ok(SkinBindingDesc::holding_shape(positions, &held, &surfaces))
