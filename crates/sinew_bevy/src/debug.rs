@@ -123,10 +123,14 @@ fn draw(
                     ColorPlan::build(m, &ConstraintKind::CANONICAL_ORDER, PlanKind::PerConstraint)
                 }),
             };
-            let mut edge = |c, color| {
-                if let [Some(a), Some(b)] = particles_of(m, c) {
-                    gizmos.line(p[a.index()], p[b.index()], color);
+            // A pair as its edge, a triangle as its outline.
+            let mut edge = |c, color| match particles_of(m, c) {
+                [Some(a), Some(b), None] => gizmos.line(p[a.index()], p[b.index()], color),
+                [Some(a), Some(b), Some(d)] => {
+                    let [a, b, d] = [a, b, d].map(|k| p[k.index()]);
+                    gizmos.linestrip([a, b, d, a], color);
                 }
+                _ => {}
             };
             for color in 0..plan.color_count() {
                 for &c in plan.units_of(color).flatten() {

@@ -148,6 +148,17 @@ pub enum BuildError {
         /// What is expected.
         reason: String,
     },
+    /// The projection order is not a permutation of the constraint types.
+    #[error(
+        "solver: projection_order must list every constraint type once; missing {missing:?}, repeated {repeated:?}"
+    )]
+    ProjectionOrder {
+        /// Types the order leaves out (they would never be projected, and a
+        /// colour plan must place every constraint).
+        missing: Vec<crate::muscle::ConstraintKind>,
+        /// Types listed more than once.
+        repeated: Vec<crate::muscle::ConstraintKind>,
+    },
     /// An attachment references a vertex past the end of the mesh.
     #[error(
         "muscle '{muscle}': attachment {attachment} uses vertex {vertex}, but the mesh has {count} vertices"

@@ -27,7 +27,9 @@
 //! `β`, with volume ratio `λβ² = k_p`, so fibres, internal links and the volume
 //! constraint agree. `β = 1` (no bulge) when [`ActivationScale::bulge`] is 1.
 
-use super::{ConstraintBatch, Correction, Gathered, ParticleId, delta_lambda};
+use super::{
+    ConstraintBatch, Correction, Gathered, MAX_PARTICLES, ParticleId, Particles, delta_lambda,
+};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -195,12 +197,13 @@ impl ConstraintBatch for DistanceBatch {
         &self.lambda
     }
 
+    #[inline(always)]
     fn particles_per_constraint(&self) -> usize {
         2
     }
 
-    fn index_arrays(&self) -> [&[ParticleId]; 2] {
-        [&self.a, &self.b]
+    fn index_arrays(&self) -> [&[ParticleId]; MAX_PARTICLES] {
+        [&self.a, &self.b, &[]]
     }
 
     fn lambda_storage(&mut self) -> &mut Vec<f32> {
@@ -208,8 +211,8 @@ impl ConstraintBatch for DistanceBatch {
     }
 
     #[inline(always)]
-    fn particles(&self, i: usize) -> [ParticleId; 2] {
-        [self.a[i], self.b[i]]
+    fn particles(&self, i: usize) -> Particles {
+        [self.a[i], self.b[i], self.b[i]]
     }
 
     #[inline(always)]
@@ -218,8 +221,8 @@ impl ConstraintBatch for DistanceBatch {
         i: usize,
         lambda: f32,
         Gathered {
-            at: [pa, pb],
-            w: [wa, wb],
+            at: [pa, pb, _],
+            w: [wa, wb, _],
         }: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction> {

@@ -14,6 +14,7 @@
 //! | Fiber, Internal, Branch | [`DistanceBatch`] | `|p_a − p_b| − σ̂(a)` |
 //! | Attach, BranchAttach, Bind, Soft, Hard | [`PointBatch`] | `|p − q| − d0` |
 //! | Sliding | [`SlidingBatch`] | `|p − c| − d0`, or `n·(p − c) − d0` inside |
+//! | Area | [`AreaBatch`] | `A(p_a, p_b, p_c) − A0` |
 //! | Volume | [`VolumeConstraint`] | `V(p) − k_p(a) V0` |
 //!
 //! A connection to another muscle (Sliding, Soft, Hard) is a two-body
@@ -28,12 +29,14 @@
 //! - Macklin, Müller, Chentanez, *XPBD*, 2016.
 //! - Romeo, Monteagudo, Sánchez-Quirós, *Muscle Simulation with XPBD*, CEIG 2018.
 
+mod area;
 mod distance;
 mod ids;
 mod point;
 mod sliding;
 mod volume;
 
+pub use area::AreaBatch;
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
 pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;
@@ -42,9 +45,19 @@ pub use volume::{VolumeConstraint, VolumeParams};
 
 use glam::Vec3;
 
+/// Most particles one batched constraint moves: a triangle's three
+/// ([`AreaBatch`]); a pair moves two, a vertex pulled toward a goal one.
+pub const MAX_PARTICLES: usize = 3;
+
+/// The particles one constraint moves, in slot order, padded to
+/// [`MAX_PARTICLES`] by repeating the last (only the first
+/// [`ConstraintBatch::particles_per_constraint`] are used).
+pub type Particles = [ParticleId; MAX_PARTICLES];
+
 /// The outcome of projecting one constraint, computed without writing: the
-/// multiplier increment and the new positions of the (at most two)
-/// particles it moves, in the slot order of [`ConstraintBatch::particles`].
+/// multiplier increment and the new positions of the (at most
+/// [`MAX_PARTICLES`]) particles it moves, in the slot order of
+/// [`ConstraintBatch::particles`].
 /// Gauss–Seidel commits it at once; a colour sweep writes it where the
 /// plan says the constraint's particles are; Jacobi gathers it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,8 +65,8 @@ pub struct Correction {
     /// Multiplier increment.
     pub dlambda: f32,
     /// New position per slot; the first `count` are used.
-    pub to: [Vec3; 2],
-    /// Number of particles moved (1 or 2).
+    pub to: [Vec3; MAX_PARTICLES],
+    /// Number of particles moved (1 to [`MAX_PARTICLES`]).
     pub count: u8,
 }
 
@@ -62,7 +75,7 @@ impl Correction {
     pub fn one(dlambda: f32, to: Vec3) -> Self {
         Self {
             dlambda,
-            to: [to, to],
+            to: [to; MAX_PARTICLES],
             count: 1,
         }
     }
@@ -71,14 +84,23 @@ impl Correction {
     pub fn two(dlambda: f32, a: Vec3, b: Vec3) -> Self {
         Self {
             dlambda,
-            to: [a, b],
+            to: [a, b, b],
             count: 2,
+        }
+    }
+
+    /// Three particles moved.
+    pub fn three(dlambda: f32, a: Vec3, b: Vec3, c: Vec3) -> Self {
+        Self {
+            dlambda,
+            to: [a, b, c],
+            count: 3,
         }
     }
 
     /// Writes the new positions of `particles` (slot order) into `p`.
     #[inline(always)]
-    pub fn write(&self, particles: [ParticleId; 2], p: &mut [Vec3]) {
+    pub fn write(&self, particles: Particles, p: &mut [Vec3]) {
         for (&to, &k) in self.to[..self.count as usize].iter().zip(&particles) {
             p[k.index()] = to;
         }
@@ -87,27 +109,44 @@ impl Correction {
 
 /// What a kernel is given of the particles one constraint moves, by value
 /// and in the slot order of [`ConstraintBatch::particles`] (a single-particle
-/// constraint reads slot 0): their positions and inverse masses, nothing
-/// else. A kernel cannot read a particle it does not move, which is what
+/// constraint reads slot 0, a pair slots 0 and 1; unused slots are zero):
+/// their positions and inverse masses, nothing else. A kernel cannot read a particle it does not move, which is what
 /// lets the colour sweeps (`solver::sweep`) run constraints of one colour on
 /// several threads with only their own particles in hand.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gathered {
     /// Positions.
-    pub at: [Vec3; 2],
+    pub at: [Vec3; MAX_PARTICLES],
     /// Inverse masses. Units: 1/kg.
-    pub w: [f32; 2],
+    pub w: [f32; MAX_PARTICLES],
 }
 
 impl Gathered {
-    /// The particles `particles` of positions `p` and inverse masses `w`.
+    /// The first `count` of `particles`, of positions `p` and inverse
+    /// masses `w` (`count` is a batch's
+    /// [`ConstraintBatch::particles_per_constraint`], a constant once the
+    /// kernel is inlined: no other slot is read).
     #[inline(always)]
-    pub fn from_slices(particles: [ParticleId; 2], p: &[Vec3], w: &[f32]) -> Self {
-        let [a, b] = particles.map(ParticleId::index);
-        Self {
-            at: [p[a], p[b]],
-            w: [w[a], w[b]],
+    pub fn from_slices(particles: Particles, count: usize, p: &[Vec3], w: &[f32]) -> Self {
+        Self::from_fn(particles, count, |k| (p[k], w[k]))
+    }
+
+    /// The first `count` of `particles`, each read by `read(index)` as
+    /// `(position, inverse mass)`.
+    #[inline(always)]
+    pub fn from_fn(
+        particles: Particles,
+        count: usize,
+        mut read: impl FnMut(usize) -> (Vec3, f32),
+    ) -> Self {
+        let mut g = Self {
+            at: [Vec3::ZERO; MAX_PARTICLES],
+            w: [0.0; MAX_PARTICLES],
+        };
+        for (slot, k) in particles.iter().enumerate().take(count) {
+            (g.at[slot], g.w[slot]) = read(k.index());
         }
+        g
     }
 }
 
@@ -117,17 +156,20 @@ pub trait ConstraintBatch {
     /// Number of constraints.
     fn count(&self) -> usize;
 
-    /// The particles constraint `i` moves: `[a, b]` for a pair, `[p, p]`
-    /// for a single particle (targets are read-only).
-    fn particles(&self, i: usize) -> [ParticleId; 2];
+    /// The particles constraint `i` moves: `[a, b, c]` for a triangle,
+    /// `[a, b, b]` for a pair, `[p, p, p]` for a single particle (targets
+    /// are read-only).
+    fn particles(&self, i: usize) -> Particles;
 
-    /// Particles each constraint moves: 1 (a particle and a target) or 2.
+    /// Particles each constraint moves: 1 (a particle and a target), 2 (a
+    /// pair) or 3 (a triangle). A constant of the type: kernels' loops
+    /// read and write only that many slots.
     fn particles_per_constraint(&self) -> usize;
 
-    /// The batch's particle-index arrays (the second empty for a
-    /// one-particle type): what a colour plan compares to see whether it
-    /// still fits.
-    fn index_arrays(&self) -> [&[ParticleId]; 2];
+    /// The batch's particle-index arrays, one per slot (empty past
+    /// [`ConstraintBatch::particles_per_constraint`]): what a colour plan
+    /// compares to see whether it still fits.
+    fn index_arrays(&self) -> [&[ParticleId]; MAX_PARTICLES];
 
     /// Whether constraint `i` is switched off (a connection of weight 0:
     /// non-finite compliance); every method skips it. Default: never.
@@ -153,7 +195,7 @@ pub trait ConstraintBatch {
     /// multiplier, not yet written (`None`: nothing to do).
     #[inline(always)]
     fn correction(&self, i: usize, p: &[Vec3], w: &[f32], inv_dt2: f32) -> Option<Correction> {
-        let at = Gathered::from_slices(self.particles(i), p, w);
+        let at = Gathered::from_slices(self.particles(i), self.particles_per_constraint(), p, w);
         self.correction_of(i, self.lambdas()[i], at, inv_dt2)
     }
 
@@ -175,7 +217,7 @@ pub trait ConstraintBatch {
     fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         for i in 0..self.count() {
             let particles = self.particles(i);
-            let at = Gathered::from_slices(particles, p, w);
+            let at = Gathered::from_slices(particles, self.particles_per_constraint(), p, w);
             if let Some(c) = self.correction_of(i, self.lambdas()[i], at, inv_dt2) {
                 self.lambdas_mut()[i] += c.dlambda;
                 c.write(particles, p);

@@ -10,7 +10,9 @@
 //! Bind:  q = Σ w_k M_k(t) ℓ_k,  d0 = 0
 //! ```
 
-use super::{ConstraintBatch, Correction, Gathered, ParticleId, delta_lambda};
+use super::{
+    ConstraintBatch, Correction, Gathered, MAX_PARTICLES, ParticleId, Particles, delta_lambda,
+};
 use glam::Vec3;
 
 /// A batch of single-particle constraints towards goal points.
@@ -74,12 +76,13 @@ impl ConstraintBatch for PointBatch {
         &self.lambda
     }
 
+    #[inline(always)]
     fn particles_per_constraint(&self) -> usize {
         1
     }
 
-    fn index_arrays(&self) -> [&[ParticleId]; 2] {
-        [&self.particle, &[]]
+    fn index_arrays(&self) -> [&[ParticleId]; MAX_PARTICLES] {
+        [&self.particle, &[], &[]]
     }
 
     fn is_off(&self, i: usize) -> bool {
@@ -91,8 +94,8 @@ impl ConstraintBatch for PointBatch {
     }
 
     #[inline(always)]
-    fn particles(&self, i: usize) -> [ParticleId; 2] {
-        [self.particle[i]; 2]
+    fn particles(&self, i: usize) -> Particles {
+        [self.particle[i]; MAX_PARTICLES]
     }
 
     #[inline(always)]
@@ -101,8 +104,8 @@ impl ConstraintBatch for PointBatch {
         i: usize,
         lambda: f32,
         Gathered {
-            at: [x, _],
-            w: [w, _],
+            at: [x, ..],
+            w: [w, ..],
         }: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction> {

@@ -18,7 +18,10 @@
 //! non-compliant position projection (bones do not give way), then the
 //! compliant gap equality acts as usual.
 
-use super::{ConstraintBatch, Correction, Gathered, ParticleId, TargetSlot, delta_lambda};
+use super::{
+    ConstraintBatch, Correction, Gathered, MAX_PARTICLES, ParticleId, Particles, TargetSlot,
+    delta_lambda,
+};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -152,12 +155,13 @@ impl ConstraintBatch for SlidingBatch {
         &self.lambda
     }
 
+    #[inline(always)]
     fn particles_per_constraint(&self) -> usize {
         1
     }
 
-    fn index_arrays(&self) -> [&[ParticleId]; 2] {
-        [&self.particle, &[]]
+    fn index_arrays(&self) -> [&[ParticleId]; MAX_PARTICLES] {
+        [&self.particle, &[], &[]]
     }
 
     fn is_off(&self, i: usize) -> bool {
@@ -169,8 +173,8 @@ impl ConstraintBatch for SlidingBatch {
     }
 
     #[inline(always)]
-    fn particles(&self, i: usize) -> [ParticleId; 2] {
-        [self.particle[i]; 2]
+    fn particles(&self, i: usize) -> Particles {
+        [self.particle[i]; MAX_PARTICLES]
     }
 
     #[inline(always)]
@@ -179,8 +183,8 @@ impl ConstraintBatch for SlidingBatch {
         i: usize,
         lambda: f32,
         Gathered {
-            at: [start, _],
-            w: [w, _],
+            at: [start, ..],
+            w: [w, ..],
         }: Gathered,
         inv_dt2: f32,
     ) -> Option<Correction> {

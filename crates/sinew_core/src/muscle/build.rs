@@ -2,7 +2,7 @@
 //! the muscle's own constraints from a [`MuscleDesc`].
 
 use super::*;
-use crate::constraints::{ActivationRest, DistanceBatch, ParticleId, VolumeConstraint};
+use crate::constraints::{ActivationRest, AreaBatch, DistanceBatch, ParticleId, VolumeConstraint};
 use fiber::fiber_field;
 
 impl Muscle {
@@ -194,6 +194,34 @@ impl Muscle {
 pub fn fiber_edges(m: &Muscle) -> DistanceBatch {
     let edges = m.mesh.edges.iter().copied();
     distances_at_rest(m, m.params.compliance.fiber, true, edges)
+}
+
+/// The Area constraints of `m`: for a surface layer
+/// ([`MuscleParams::is_surface_layer`]) one per triangle of its mesh at the
+/// triangle's rest area, and for a polygon of more vertices one per corner
+/// (`p_k−1, p_k, p_k+1`: symmetric, where a split along one diagonal would
+/// favour it). None for a muscle: its volume and internal structure hold
+/// its shape.
+pub fn area_triangles(m: &Muscle) -> AreaBatch {
+    let mut batch = AreaBatch {
+        compliance: m.area_compliance(),
+        ..Default::default()
+    };
+    if !m.params.is_surface_layer() {
+        return batch;
+    }
+    let id = |v: u32| ParticleId::from_index(v as usize);
+    for o in m.mesh.polygon_offsets.windows(2) {
+        let poly = &m.mesh.polygon_indices[o[0] as usize..o[1] as usize];
+        let k = poly.len();
+        let corners = if k == 3 { 1 } else { k };
+        for j in 0..corners {
+            let tri = [poly[(j + k - 1) % k], poly[j], poly[(j + 1) % k]];
+            let [a, b, c] = tri.map(|v| m.rest[v as usize]);
+            batch.push(tri.map(id), AreaBatch::triangle_area(a, b, c));
+        }
+    }
+    batch
 }
 
 /// The Branch constraints of `m`: one per branch of its internal

@@ -72,6 +72,12 @@ macro_rules! constraint_types {
                 /// along the fibres with activation.
                 Fiber => fiber: $crate::constraints::DistanceBatch,
                     "Fiber", compliance 2e-5, column 0, made (by $crate::muscle::fiber_edges);
+                /// Area: one per triangle of a surface layer's mesh (skin,
+                /// fat), keeping its area against shear and folds (a muscle
+                /// keeps its shape by volume and internal structure and has
+                /// none). Units: m³/N.
+                Area => area: $crate::constraints::AreaBatch,
+                    "Area", compliance 1e-7, column 10, made (by $crate::muscle::area_triangles);
             }
             whole {
                 /// Volume: one per muscle; enclosed volume with

@@ -14,7 +14,7 @@ mod mass;
 mod params;
 
 pub use binding::{BoundVertex, MAX_BONES, SkinBindingDesc, bind_constraints, update_bind_goals};
-pub use build::{branch_links, fiber_edges, internal_links};
+pub use build::{area_triangles, branch_links, fiber_edges, internal_links};
 pub(crate) use constraints::{BATCHED_KINDS, MuscleLambdas};
 pub use constraints::{Compliances, ConstraintCounts, ConstraintKind, MuscleConstraints};
 pub use fiber::{fiber_field, longest_axis};
@@ -400,6 +400,13 @@ impl Muscle {
         self.params.contact_reach * self.length_unit
     }
 
+    /// Area's compliance in scene units: [`Compliances::area`] (m³/N)
+    /// times the square of the length unit, so that a skin in other units
+    /// keeps its area as stiff.
+    pub fn area_compliance(&self) -> f32 {
+        self.params.compliance.area * self.length_unit.powi(2)
+    }
+
     /// Volume's compliance in scene units: [`Compliances::volume`] (m³/N)
     /// times the length unit's fourth power, so that a scene in other
     /// units keeps its volume as stiff.
@@ -539,10 +546,12 @@ impl Muscle {
     /// parameter edit; no rebuild needed).
     pub fn apply_compliances(&mut self) {
         let p = self.params.compliance;
+        let area = self.area_compliance();
         let k = &mut self.constraints;
         k.fiber.compliance = p.fiber;
         k.branch.compliance = p.branch;
         k.internal.compliance = p.internal;
+        k.area.compliance = area;
         k.attach.compliance.fill(p.attach);
         k.branch_attach.compliance.fill(p.branch_attach);
         for (c, b) in k.bind.compliance.iter_mut().zip(&self.binding) {

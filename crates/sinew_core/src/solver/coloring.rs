@@ -202,11 +202,11 @@ impl ColorPlan {
         let mut edges = Vec::new();
         for c in constraints_in_order(m, order) {
             match (c.kind, particles_of(m, c)) {
-                (ConstraintKind::Internal, [Some(a), Some(b)]) => {
+                (ConstraintKind::Internal, [Some(a), Some(b), None]) => {
                     let center = if a >= surface { a } else { b };
                     stars[center.index()].push(c);
                 }
-                (_, [Some(p), None]) => vertex_units[p.index()].push(c),
+                (_, [Some(p), None, None]) => vertex_units[p.index()].push(c),
                 _ => edges.push(vec![c]),
             }
         }

@@ -3,7 +3,9 @@
 //! ([`crate::muscle::MuscleConstraints`]): the particles it moves, whether
 //! it is switched off, its projection and the commit of that projection.
 
-use crate::constraints::{BatchFn, BatchFnMut, ConstraintBatch, Correction, ParticleId};
+use crate::constraints::{
+    BatchFn, BatchFnMut, ConstraintBatch, Correction, MAX_PARTICLES, ParticleId, Particles,
+};
 use crate::muscle::ConstraintKind;
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
@@ -17,16 +19,18 @@ pub struct ConstraintRef {
     pub index: u32,
 }
 
-/// The particles constraint `c` of `m` moves (targets are read-only).
-pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<ParticleId>; 2] {
+/// The particles constraint `c` of `m` moves, in slot order, `None` past
+/// its batch's [`ConstraintBatch::particles_per_constraint`] (targets are
+/// read-only).
+pub fn particles_of(m: &Muscle, c: ConstraintRef) -> [Option<ParticleId>; MAX_PARTICLES] {
     let Some(batch) = m.constraints.batch(c.kind) else {
-        return [None, None];
+        return [None; MAX_PARTICLES];
     };
-    let [a, b] = batch.particles(c.index as usize);
-    [
-        Some(a),
-        (batch.particles_per_constraint() == 2).then_some(b),
-    ]
+    let (moved, count) = (
+        batch.particles(c.index as usize),
+        batch.particles_per_constraint(),
+    );
+    std::array::from_fn(|slot| (slot < count).then_some(moved[slot]))
 }
 
 /// Every particle-index array of `m`'s batches (Volume, which moves every
@@ -67,11 +71,11 @@ pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<Constra
 }
 
 /// The particles constraint `c` of `m` moves, as its batch gives them
-/// (`[p, p]` for one particle).
+/// (padded by repeating the last: `[p, p, p]` for one particle).
 ///
 /// # Panics
 /// For Volume, which is solved apart.
-pub(super) fn batch_particles(m: &Muscle, c: ConstraintRef) -> [ParticleId; 2] {
+pub(super) fn batch_particles(m: &Muscle, c: ConstraintRef) -> Particles {
     m.constraints
         .batch(c.kind)
         .expect("Volume is solved apart")

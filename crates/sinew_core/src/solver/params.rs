@@ -18,7 +18,8 @@ pub struct ProjectionOrder {
 }
 
 impl ProjectionOrder {
-    /// The first nine entries of `order`.
+    /// The first [`ConstraintKind::COUNT`] entries of `order` (a valid
+    /// order lists every type once: `SolverSettings::validate`).
     pub fn new(order: &[ConstraintKind]) -> Self {
         let mut kinds = ConstraintKind::CANONICAL_ORDER;
         let len = order.len().min(kinds.len());

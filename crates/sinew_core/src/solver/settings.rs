@@ -124,7 +124,10 @@ pub struct SolverSettings {
     pub length_unit: f32,
     /// Projection method. Default: [`SolverMethod::Sequential`].
     pub method: SolverMethod,
-    /// Order in which constraint types are projected. Default: SPEC §4.3.
+    /// Order in which constraint types are projected: every type once, in
+    /// any order (a scene written before a type existed must add it; the
+    /// error names it). Default: SPEC §4.3, with Bind before the target
+    /// connections and Area after Fiber.
     pub projection_order: Vec<ConstraintKind>,
     /// Measure per-block time. Default: `true`.
     pub timers: bool,
@@ -242,6 +245,13 @@ impl SolverSettings {
         }
         if !self.gravity.is_finite() {
             return Err(bad("gravity", f32::NAN, "must be finite"));
+        }
+        let listed = |k: &ConstraintKind| self.projection_order.iter().filter(|&o| o == k).count();
+        let all = ConstraintKind::CANONICAL_ORDER;
+        let missing: Vec<_> = all.into_iter().filter(|k| listed(k) == 0).collect();
+        let repeated: Vec<_> = all.into_iter().filter(|k| listed(k) > 1).collect();
+        if !missing.is_empty() || !repeated.is_empty() {
+            return Err(BuildError::ProjectionOrder { missing, repeated });
         }
         Ok(())
     }

@@ -29,7 +29,7 @@
     reason = "threads write disjoint entries of one slice; the disjointness is checked here"
 )]
 
-use crate::constraints::{BatchFn, ConstraintBatch, Gathered, ParticleId};
+use crate::constraints::{BatchFn, ConstraintBatch, Gathered, Particles};
 use crate::muscle::{BATCHED_KINDS, ConstraintCounts, ConstraintKind, MuscleLambdas};
 use crate::muscle::{Muscle, MuscleConstraints};
 use glam::Vec3;
@@ -41,8 +41,9 @@ use std::marker::PhantomData;
 pub(super) struct PlannedConstraint {
     /// Index in its type's batch.
     pub index: u32,
-    /// The particles it moves, `[p, p]` for one.
-    pub particles: [ParticleId; 2],
+    /// The particles it moves, padded by repeating the last (`[p, p, p]`
+    /// for one).
+    pub particles: Particles,
 }
 
 /// A run of a chunk's constraints of one type: `ops[start..end]`.
@@ -321,17 +322,15 @@ impl<'a> MuscleSweep<'a> {
     #[inline(always)]
     fn run<B: ConstraintBatch>(&self, batch: &B, kind: ConstraintKind, ops: &[PlannedConstraint]) {
         let lambda = &self.lambdas[kind as usize];
+        // A constant of `B` once inlined: only the slots it uses are read.
+        let count = batch.particles_per_constraint();
         for op in ops {
             let i = op.index as usize;
-            let [a, b] = op.particles.map(|k| k.index());
             // SAFETY: the chunk being run is the only one of its colour that
             // touches these particles and this multiplier (`SweepPlan::check`),
             // and the colours run one after the other.
             let (l, at) = unsafe {
-                let at = Gathered {
-                    at: [self.p.read(a), self.p.read(b)],
-                    w: [self.w[a], self.w[b]],
-                };
+                let at = Gathered::from_fn(op.particles, count, |k| (self.p.read(k), self.w[k]));
                 (lambda.read(i), at)
             };
             if let Some(c) = batch.correction_of(i, l, at, self.inv_h2) {
@@ -390,6 +389,7 @@ pub(super) fn sweep_color(m: &mut Muscle, plan: &SweepPlan, color: usize, inv_h2
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::constraints::ParticleId;
 
     fn counts(fiber: usize) -> ConstraintCounts {
         let mut c = ConstraintCounts::default();
@@ -397,10 +397,10 @@ mod tests {
         c
     }
 
-    fn fiber(index: u32, particles: [u32; 2]) -> PlannedConstraint {
+    fn fiber(index: u32, [a, b]: [u32; 2]) -> PlannedConstraint {
         PlannedConstraint {
             index,
-            particles: particles.map(ParticleId::new),
+            particles: [a, b, b].map(ParticleId::new),
         }
     }
 

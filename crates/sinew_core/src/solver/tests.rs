@@ -100,6 +100,15 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
             s.lambda = vec![0.0];
             s.index_candidates();
         }
+        K::Area => {
+            // A muscle has no Area constraints (a surface layer's): one on
+            // the muscle's triangle `keep`, at its rest area.
+            let tri = m.mesh.triangles[keep].map(crate::constraints::ParticleId::new);
+            let [a, b, c3] = tri.map(|v| m.rest[v.index()]);
+            let mut area = crate::constraints::AreaBatch::default();
+            area.push(tri, crate::constraints::AreaBatch::triangle_area(a, b, c3));
+            c.area = area;
+        }
         K::Volume => c.volume.as_mut().unwrap().compliance = 0.0,
     }
 }
@@ -123,6 +132,7 @@ fn value(m: &Muscle, kind: K) -> (f64, f64) {
         K::Branch => edge(&c.branch),
         K::Internal => edge(&c.internal),
         K::Fiber => edge(&c.fiber),
+        K::Area => (c.area.value(0, p) as f64, c.area.rest[0] as f64),
         K::Volume => {
             let v = c.volume.as_ref().unwrap();
             (v.value(p), v.rest_volume)
@@ -146,7 +156,12 @@ fn one_projection_with_zero_compliance_satisfies_each_type() {
             before.abs() / scale > 1e-3,
             "{kind:?} not violated: {before}"
         );
-        project(&mut m, &[kind], 3600.0);
+        // Every type's C is linear along its gradient but Area's, which is
+        // quadratic: its projections converge quadratically (Newton).
+        let projections = if kind == K::Area { 3 } else { 1 };
+        for _ in 0..projections {
+            project(&mut m, &[kind], 3600.0);
+        }
         let (after, _) = value(&m, kind);
         assert!(
             after.abs() / scale < 1e-5,
@@ -492,5 +507,38 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
     assert!(
         settings.validate().is_err(),
         "choose_interval 0 is rejected"
+    );
+}
+
+/// A projection order that leaves a type out or lists one twice is refused
+/// with an error naming the types (a colour plan must place every
+/// constraint; a left-out type would silently never be solved).
+#[test]
+fn a_projection_order_must_list_every_type_once() {
+    let mut settings = SolverSettings::default();
+    assert!(settings.validate().is_ok());
+    settings
+        .projection_order
+        .retain(|&k| k != ConstraintKind::Area);
+    settings.projection_order.push(ConstraintKind::Fiber);
+    let err = settings.validate().expect_err("Area missing, Fiber twice");
+    let text = err.to_string();
+    assert!(
+        text.contains("missing [Area]") && text.contains("repeated [Fiber]"),
+        "{text}"
+    );
+    settings.projection_order.pop();
+    settings.projection_order.insert(0, ConstraintKind::Area);
+    assert!(
+        settings.validate().is_ok(),
+        "any order of every type is valid"
+    );
+    let mut solver = Solver::new(SolverSettings::default()).unwrap();
+    solver.settings.projection_order.clear();
+    solver.step();
+    let warnings = solver.take_warnings();
+    assert!(
+        warnings.iter().any(|w| w.contains("projection_order")),
+        "{warnings:?}"
     );
 }

@@ -21,6 +21,9 @@ pub struct SkinLayer {
     /// Compliance of the skin's edges (how much it stretches). Units:
     /// m/N. Default: 0.005.
     pub stretch_compliance: f32,
+    /// Compliance of each skin triangle's area (how much it shears flat or
+    /// gathers into folds). Units: m³/N. Default: 1e-7.
+    pub area_compliance: f32,
     /// Compliance of the pull towards the skinned position (÷ a vertex's
     /// strength). Units: m/N. Default: 0.05.
     pub bind_compliance: f32,
@@ -38,6 +41,7 @@ impl Default for SkinLayer {
             area_density: 1.1,
             reach: 0.02,
             stretch_compliance: 0.005,
+            area_compliance: 1e-7,
             bind_compliance: 0.05,
             iterations: 4,
         }
@@ -84,6 +88,7 @@ impl FittedScene {
         // it lies on.
         params.sliding_mode = SlidingMode::Contact;
         params.compliance.fiber = layer.stretch_compliance;
+        params.compliance.area = layer.area_compliance;
         params.compliance.bind = layer.bind_compliance;
         params.iterations = Some(layer.iterations.max(1));
         self.scene.muscles.push(MuscleSpec {
