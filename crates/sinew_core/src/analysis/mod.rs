@@ -16,7 +16,8 @@ mod verdict;
 pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
 pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use skin::{
-    SkinBulge, skin_bind_distances, skin_bulges, skin_inside_vertices, skinned_surface,
+    SkinBindDistance, SkinBulge, skin_bind_distances, skin_bulges, skin_inside_vertices,
+    skinned_surface,
 };
 pub use verdict::{Thresholds, Verdict};
 

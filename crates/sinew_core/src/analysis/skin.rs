@@ -41,18 +41,43 @@ pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
         .collect()
 }
 
-/// Per skin, `(body, largest distance of a bound vertex
-/// from its skinned position)` for the bones' current poses. Units: m.
-pub fn skin_bind_distances(solver: &Solver) -> Vec<(usize, f32)> {
+/// How far one skin is from where its binding puts it ([`skin_bind_distances`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkinBindDistance {
+    /// The skin body.
+    pub skin: usize,
+    /// Largest distance of a bound vertex from its skinned position. Units: m.
+    pub max: f32,
+    /// The vertex of the largest.
+    pub vertex: u32,
+    /// Bound vertices farther than the limit asked for.
+    pub over: usize,
+    /// Bound vertices.
+    pub bound: usize,
+}
+
+/// Per skin, how far its bound vertices are from their skinned positions
+/// for the bones' current poses: the largest and how many are farther
+/// than `limit` (m).
+pub fn skin_bind_distances(solver: &Solver, limit: f32) -> Vec<SkinBindDistance> {
     let pose = |b: usize| solver.bones()[b].transform;
     skins(solver)
         .map(|(i, m)| {
-            let far = m
-                .binding
-                .iter()
-                .map(|b| (m.x[b.vertex.index()] - b.goal(&pose)).length() / m.length_unit)
-                .fold(0.0, f32::max);
-            (i, far)
+            let mut d = SkinBindDistance {
+                skin: i,
+                max: 0.0,
+                vertex: 0,
+                over: 0,
+                bound: m.binding.len(),
+            };
+            for b in &m.binding {
+                let far = (m.x[b.vertex.index()] - b.goal(&pose)).length() / m.length_unit;
+                d.over += usize::from(far > limit);
+                if far > d.max {
+                    (d.max, d.vertex) = (far, b.vertex.raw());
+                }
+            }
+            d
         })
         .collect()
 }

@@ -301,17 +301,21 @@ impl RunMetrics {
             format!("≤ {} mm", limits.rest_deviation * 1e3),
             judged(d <= f64::from(limits.rest_deviation)),
         );
-        let binds = super::skin_bind_distances(solver);
-        if let Some(&(b_i, far)) = binds.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+        let binds = super::skin_bind_distances(solver, limits.skin_bind);
+        if let Some(d) = binds.iter().max_by(|a, b| a.max.total_cmp(&b.max)) {
             push(
                 "rest skin bind",
                 format!(
-                    "{:.3} mm from the skinned position ({})",
-                    far * 1e3,
-                    name(b_i)
+                    "{:.3} mm from the skinned position ({} vertex {}); {} of {} vertices farther than {} mm",
+                    d.max * 1e3,
+                    name(d.skin),
+                    d.vertex,
+                    d.over,
+                    d.bound,
+                    limits.skin_bind * 1e3
                 ),
                 format!("≤ {} mm", limits.skin_bind * 1e3),
-                judged(far <= limits.skin_bind),
+                judged(d.max <= limits.skin_bind),
             );
         }
         out
