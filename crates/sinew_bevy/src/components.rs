@@ -241,6 +241,10 @@ pub struct Muscle {
     /// Activation of the modelled (rest) shape, clamped to ≤ 0.95. Range
     /// `[0, 1]`. Default: `0`.
     pub rest_activation: f32,
+    /// What is left of a held shape's pull at full activation
+    /// ([`MuscleParams::hold_release`]; only for a muscle built with
+    /// `hold_shape`). Range `[0.01, 1]`. Default: `1`.
+    pub hold_release: f32,
 }
 
 impl Default for Muscle {
@@ -264,6 +268,7 @@ impl Muscle {
             weights: p.weights.into(),
             max_contraction: p.max_contraction,
             rest_activation: p.rest_activation,
+            hold_release: p.hold_release,
         }
     }
 
@@ -279,6 +284,7 @@ impl Muscle {
         p.damping = self.damping;
         p.max_contraction = self.max_contraction;
         p.rest_activation = self.rest_activation;
+        p.hold_release = self.hold_release;
         let (compliance, weights): (Compliances, CoreWeights) =
             (self.compliance.into(), self.weights.into());
         let changed = compliance != p.compliance || weights != p.weights;

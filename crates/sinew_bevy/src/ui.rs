@@ -318,7 +318,7 @@ fn view_toggles(ui: &mut egui::Ui, view: &mut ResMut<crate::view::SinewView>) {
 }
 
 /// A simulated skin's parameters: how closely it follows the skeleton,
-/// how much it stretches, how it slides on what is under it.
+/// how much it stretches and shears, how it slides on what is under it.
 fn skin_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
     let mut edit = (**m).clone();
     let c = &mut edit.compliance;
@@ -332,6 +332,11 @@ fn skin_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
             "stretch",
             &mut c.fiber,
             "compliance of the skin's edges: larger stretches more",
+        ),
+        (
+            "area",
+            &mut c.area,
+            "compliance of each triangle's area: larger lets the skin shear and gather into folds",
         ),
         (
             "slide",
@@ -388,6 +393,10 @@ fn muscle_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
     ui.add(egui::Slider::new(&mut edit.damping, 0.0..=20.0).text("damping 1/s"));
     ui.add(egui::Slider::new(&mut edit.max_contraction, 0.0..=0.9).text("max contraction"));
     ui.add(egui::Slider::new(&mut edit.rest_activation, 0.0..=0.95).text("rest activation"));
+    ui.add(egui::Slider::new(&mut edit.hold_release, 0.01..=1.0).text("hold at full activation"))
+        .on_hover_text(
+            "a muscle that holds its shape on its bones: what is left of the hold when fully active",
+        );
     ui.label("connection weights (per vertex maps override)");
     let w = &mut edit.weights;
     for (name, value) in [

@@ -64,6 +64,30 @@ fn t3_biceps_bulges_from_the_elbow_sensor_alone() {
     }
 }
 
+/// T5's muscles hold their shape on the bones (`hold_shape`); the hold
+/// lets go of a contracting muscle, so at peak flexion its biceps bulge as
+/// they did without it. Held at full strength whatever the activation,
+/// the long head's belly section fell to ×0.60.
+#[test]
+fn t5_biceps_bulge_through_their_held_shape() {
+    let (scene, mut solver) = load("t5");
+    assert!(scene.muscles.iter().all(|m| m.params.hold_shape));
+    let mut metrics = RunMetrics::new(&solver, 0.002);
+    metrics.penetration_every = 1000;
+    // Past the first flexion's peak (2.5 s) and the biceps' full activation.
+    for _ in 0..180 {
+        solver.step();
+        metrics.observe(&solver);
+    }
+    for name in ["BIClong", "BICshort"] {
+        let i = solver.muscle_index(name).unwrap();
+        let (activation, section) = metrics.section_at_peak[i];
+        eprintln!("{name}: belly section ×{section:.3} at activation {activation:.2}");
+        assert!(activation >= 0.8, "{name}: peak activation {activation}");
+        assert!(section >= 1.1, "{name}: belly section ×{section}");
+    }
+}
+
 #[test]
 fn t5_matches_the_thesis_arm_size_and_starts_clean() {
     let (scene, mut solver) = load("t5");

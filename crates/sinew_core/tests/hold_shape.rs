@@ -171,3 +171,45 @@ fn a_muscle_holding_its_shape_still_contracts_and_follows_its_bones() {
         );
     }
 }
+
+/// The hold is a relaxed muscle's: with `hold_release` 0.1 its Bind
+/// compliance is divided by `max(1 − a, 0.1)`, so that a
+/// contracting muscle slides and bulges between its bones as its fibres
+/// and volume make it (T5's biceps: `anatomy_scenes.rs`), and once it
+/// relaxes the hold brings it back to its rest shape on its bones.
+#[test]
+fn a_contracting_muscle_is_released_by_its_hold_and_held_again_when_relaxed() {
+    for method in SolverMethod::EVERY {
+        let mut solver = spindle(true, false, method);
+        solver.muscle_mut(0).params.hold_release = 0.1;
+        let base = solver.muscles()[0].params.compliance.bind;
+        let compliances = |solver: &Solver| solver.muscles()[0].constraints.bind.compliance.clone();
+        assert!(compliances(&solver).iter().all(|&c| c == base));
+        while solver.time() < 2.0 {
+            let a = ((solver.time() - 0.5) / 0.5).clamp(0.0, 1.0);
+            solver.set_activation(0, a);
+            solver.step();
+        }
+        let released = base / 0.1;
+        assert!(
+            compliances(&solver)
+                .iter()
+                .all(|&c| (c - released).abs() < 1e-6 * released),
+            "{method:?}: at full activation the hold keeps a tenth of its pull"
+        );
+        while solver.time() < 4.0 {
+            solver.set_activation(0, 0.0);
+            solver.step();
+        }
+        assert!(compliances(&solver).iter().all(|&c| c == base));
+        eprintln!(
+            "{method:?}: relaxed, {:.2} mm off its rest shape",
+            off_rest(&solver) * 1e3
+        );
+        assert!(
+            off_rest(&solver) < 0.002,
+            "{method:?}: relaxed, {} mm off its rest shape",
+            off_rest(&solver) * 1e3
+        );
+    }
+}

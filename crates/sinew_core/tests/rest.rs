@@ -5,9 +5,9 @@
 //! kept from switching targets, P3 never settled: 192 m/s² RMS surface
 //! acceleration, edges stretched ×21, both muscles crumpled into shards.
 
-use sinew_core::SolverMethod;
 use sinew_core::analysis::{RunMetrics, Thresholds};
-use sinew_core::scene::builtin;
+use sinew_core::scene::{Scene, builtin};
+use sinew_core::{ColorScope, SolverMethod};
 use std::path::Path;
 
 #[test]
@@ -56,5 +56,75 @@ fn p3_at_rest_settles_and_keeps_its_shape_with_every_method() {
             .filter(|v| v.pass != Some(true))
             .collect();
         assert!(failed.is_empty(), "{method:?}: {failed:#?}");
+    }
+}
+
+/// T5 (the 17-muscle arm) with its motion removed: the muscles rest on
+/// each other and on the bones and must come to rest in their shape. They
+/// do because the tissue around them holds them (`hold_shape`, on in T5's
+/// recipe); without it the arm hung on its attachments and, after 10 s,
+/// still moved 7.5 mm/s RMS, 113 mm from its rest shape, its edges ×0.40
+/// to ×11 (checked below: the test fails without the hold).
+#[test]
+fn t5_without_its_motion_settles_in_its_shape() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    // Jacobi and Hybrid average each vertex's corrections and leave the
+    // brachialis' and deltoid's edges at ×0.65 after 4 s (the other
+    // figures met): they are not judged here.
+    let methods = [
+        SolverMethod::Sequential,
+        SolverMethod::Colored {
+            scope: ColorScope::Global,
+        },
+        SolverMethod::Colored {
+            scope: ColorScope::PerMuscle,
+        },
+    ];
+    for (method, hold) in methods
+        .into_iter()
+        .map(|m| (m, true))
+        .chain([(SolverMethod::Sequential, false)])
+    {
+        let mut scene: Scene = ron::from_str(&text).unwrap();
+        scene.hold_first_pose();
+        scene.settings.method = method;
+        for m in &mut scene.muscles {
+            assert!(m.params.hold_shape, "T5's recipe holds {}", m.name);
+            m.params.hold_shape = hold;
+        }
+        let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
+        let mut metrics = RunMetrics::new(&solver, 0.002);
+        metrics.penetration_every = 240;
+        for _ in 0..240 {
+            solver.step();
+            metrics.observe(&solver);
+        }
+        let limits = Thresholds {
+            strain: [0.8, 1.25],
+            ..Thresholds::default()
+        };
+        let failed: Vec<_> = metrics
+            .verdicts(&solver, &limits, 0.0)
+            .into_iter()
+            .filter(|v| v.pass != Some(true))
+            .map(|v| format!("{}: {}", v.figure, v.value))
+            .collect();
+        let rest = metrics.recent_motion_total();
+        eprintln!(
+            "{method:?} hold {hold}: {:.3} mm/s RMS over the last second, jiggle {:.4} m/s² \
+             over the run; failed {failed:?}",
+            rest.rms_velocity() * 1e3,
+            metrics.jiggle_rms()
+        );
+        if hold {
+            assert!(failed.is_empty(), "{method:?}: {failed:#?}");
+            assert!(rest.rms_velocity() < 1e-3 && metrics.jiggle_rms() < 0.1);
+        } else {
+            assert!(
+                rest.rms_velocity() > 1e-3 && !failed.is_empty(),
+                "without the hold the arm does not settle"
+            );
+        }
     }
 }

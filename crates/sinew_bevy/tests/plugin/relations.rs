@@ -404,6 +404,7 @@ fn weights_contraction_and_rest_activation_are_live() {
         live.weights.hard = 0.0;
         live.max_contraction = 0.5;
         live.rest_activation = 0.2;
+        live.hold_release = 0.3;
     }
     app.update();
     let sets = app.world().get::<ConstraintSets>(muscle).unwrap();
@@ -415,6 +416,7 @@ fn weights_contraction_and_rest_activation_are_live() {
         .muscle
         .params;
     assert_eq!((params.max_contraction, params.rest_activation), (0.5, 0.2));
+    assert_eq!(params.hold_release, 0.3);
     assert_eq!(params.weights.hard, 0.0);
     // A value the core refuses keeps the last valid ones.
     app.world_mut()

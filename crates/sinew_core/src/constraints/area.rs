@@ -8,7 +8,10 @@
 //! ∇_b C = ½ (p_c − p_a) × n,  ∇_c C = ½ n × (p_b − p_a),  ∇_a C = −∇_b C − ∇_c C
 //! ```
 //! A degenerate triangle (`|N|` ≈ 0) has no gradient and is left alone
-//! that iteration. Compliance units: m³/N (`C` is an area: `α` is compared
+//! that iteration. In [`AreaMode::NoShrink`] the constraint is one-sided,
+//! like a contact: the total multiplier stays ≥ 0, so it only pushes a
+//! shrunk triangle open and lets a stretched one be (its edges hold it) —
+//! what a skin over a bulging muscle needs. Compliance units: m³/N (`C` is an area: `α` is compared
 //! with `w |∇C|²`, in kg⁻¹·m²), scaled by the square of the scene's length
 //! unit like every SI parameter.
 
@@ -16,6 +19,21 @@ use super::{
     ConstraintBatch, Correction, Gathered, MAX_PARTICLES, ParticleId, Particles, delta_lambda,
 };
 use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Whether Area keeps a triangle's area both ways or only stops it
+/// shrinking.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AreaMode {
+    /// Equality: the area stays at its rest value, stretched or shrunk.
+    #[default]
+    Keep,
+    /// Inequality: a triangle may stretch freely (its edges hold it) but
+    /// not shrink below its rest area — no collapse, no fold — so a skin
+    /// stretches over a bulging muscle (with `Keep` at 1e-7 m³/N the
+    /// skin over MakeHuman's biceps stood out 3.3 mm instead of 5.0).
+    NoShrink,
+}
 
 /// A batch of triangle area constraints.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -33,6 +51,8 @@ pub struct AreaBatch {
     /// Compliance in scene units. Units: m³/N × (scene units per metre)².
     /// `0` is rigid.
     pub compliance: f32,
+    /// Both ways or only against shrinking.
+    pub mode: AreaMode,
 }
 
 impl AreaBatch {
@@ -126,6 +146,15 @@ impl ConstraintBatch for AreaBatch {
         let weighted =
             wa * ga.length_squared() + wb * gb.length_squared() + wc * gc.length_squared();
         let dl = delta_lambda(0.5 * twice_area - self.rest[i], lambda, weighted, alpha);
+        let dl = match self.mode {
+            AreaMode::Keep => dl,
+            // One-sided: the total multiplier stays ≥ 0, so the constraint
+            // only ever pushes a shrunk triangle open.
+            AreaMode::NoShrink => (lambda + dl).max(0.0) - lambda,
+        };
+        if dl == 0.0 {
+            return None;
+        }
         Some(Correction::three(
             dl,
             pa + ga * (wa * dl),
@@ -203,6 +232,35 @@ mod tests {
         assert!(err < 1e-5, "relative area error {err}");
         let moved = ((p[0] + p[1] + p[2]) / 3.0 - centre).length();
         assert!(moved < 1e-7, "centre moved {moved}");
+    }
+
+    /// `NoShrink` opens a shrunk triangle and leaves a stretched one alone.
+    #[test]
+    fn no_shrink_only_pushes_a_shrunk_triangle_open() {
+        let rest = [
+            Vec3::ZERO,
+            Vec3::new(0.02, 0.0, 0.0),
+            Vec3::new(0.0, 0.02, 0.0),
+        ];
+        let mut batch = AreaBatch {
+            mode: AreaMode::NoShrink,
+            ..Default::default()
+        };
+        batch.push(
+            ids([0, 1, 2]),
+            AreaBatch::triangle_area(rest[0], rest[1], rest[2]),
+        );
+        let w = [1.0; 3];
+        let mut stretched = rest.map(|x| x * 1.3);
+        let before = stretched;
+        batch.solve(&mut stretched, &w, 3600.0);
+        assert_eq!(stretched, before, "a stretched triangle is left alone");
+        let mut shrunk = rest.map(|x| x * 0.7);
+        for _ in 0..20 {
+            batch.solve(&mut shrunk, &w, 3600.0);
+        }
+        let err = batch.value(0, &shrunk).abs() / batch.rest[0];
+        assert!(err < 1e-5, "a shrunk one is opened to its rest area: {err}");
     }
 
     /// A degenerate (collinear) triangle has no gradient: no correction, no NaN.

@@ -14,7 +14,7 @@
 //! | Fiber, Internal, Branch | [`DistanceBatch`] | `|p_a − p_b| − σ̂(a)` |
 //! | Attach, BranchAttach, Bind, Soft, Hard | [`PointBatch`] | `|p − q| − d0` |
 //! | Sliding | [`SlidingBatch`] | `|p − c| − d0`, or `n·(p − c) − d0` inside |
-//! | Area | [`AreaBatch`] | `A(p_a, p_b, p_c) − A0` |
+//! | Area | [`AreaBatch`] | `A(p_a, p_b, p_c) − A0`, or `min(·, 0)` ([`AreaMode::NoShrink`]) |
 //! | Volume | [`VolumeConstraint`] | `V(p) − k_p(a) V0` |
 //!
 //! A connection to another muscle (Sliding, Soft, Hard) is a two-body
@@ -36,7 +36,7 @@ mod point;
 mod sliding;
 mod volume;
 
-pub use area::AreaBatch;
+pub use area::{AreaBatch, AreaMode};
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
 pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;

@@ -212,7 +212,7 @@ pub fn bind_constraints(m: &Muscle) -> PointBatch {
     let mut batch = PointBatch::default();
     for b in &m.binding {
         let i = b.vertex.index();
-        batch.push(b.vertex, m.x[i], 0.0, m.params.compliance.bind / b.strength);
+        batch.push(b.vertex, m.x[i], 0.0, m.bind_compliance(b.strength));
     }
     batch
 }

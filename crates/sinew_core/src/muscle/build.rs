@@ -205,6 +205,7 @@ pub fn fiber_edges(m: &Muscle) -> DistanceBatch {
 pub fn area_triangles(m: &Muscle) -> AreaBatch {
     let mut batch = AreaBatch {
         compliance: m.area_compliance(),
+        mode: m.params.area_mode,
         ..Default::default()
     };
     if !m.params.is_surface_layer() {

@@ -539,7 +539,37 @@ impl Muscle {
         if let Some(v) = &mut k.volume {
             v.ratio = p.volume.ratio(a, a0);
         }
+        if self.holds_shape() {
+            self.apply_bind_compliances();
+        }
         warning
+    }
+
+    /// Whether this muscle's shape is held on its bones
+    /// ([`MuscleParams::hold_shape`]): bound, and no skin.
+    pub fn holds_shape(&self) -> bool {
+        !self.binding.is_empty() && !self.params.is_surface_layer()
+    }
+
+    /// The Bind compliance of a bound vertex of `strength`: the type's
+    /// compliance ÷ the strength, and for a muscle that holds its shape
+    /// also ÷ [`MuscleParams::hold_strength`] at its activation.
+    pub fn bind_compliance(&self, strength: f32) -> f32 {
+        let hold = if self.holds_shape() {
+            self.params.hold_strength(self.params.activation)
+        } else {
+            1.0
+        };
+        self.params.compliance.bind / (strength * hold)
+    }
+
+    /// Writes [`Muscle::bind_compliance`] into every Bind constraint.
+    fn apply_bind_compliances(&mut self) {
+        let base = self.bind_compliance(1.0);
+        let k = &mut self.constraints.bind;
+        for (c, b) in k.compliance.iter_mut().zip(&self.binding) {
+            *c = base / b.strength;
+        }
     }
 
     /// Pushes per-type compliances from `params` into the batches (after a
@@ -554,9 +584,7 @@ impl Muscle {
         k.area.compliance = area;
         k.attach.compliance.fill(p.attach);
         k.branch_attach.compliance.fill(p.branch_attach);
-        for (c, b) in k.bind.compliance.iter_mut().zip(&self.binding) {
-            *c = p.bind / b.strength;
-        }
+        self.apply_bind_compliances();
         let volume = self.volume_compliance();
         if let Some(v) = &mut self.constraints.volume {
             v.compliance = volume;

@@ -2,7 +2,7 @@
 
 use super::internal::InternalStructureParams;
 use super::{Compliances, ConstraintKind};
-use crate::constraints::{FiberMode, SlidingMode, VolumeParams};
+use crate::constraints::{AreaMode, FiberMode, SlidingMode, VolumeParams};
 use crate::error::BuildError;
 use serde::{Deserialize, Serialize};
 
@@ -98,6 +98,11 @@ pub struct MuscleParams {
     pub contact_reach: f32,
     /// Sliding behaviour. Default: [`SlidingMode::KeepGap`].
     pub sliding_mode: SlidingMode,
+    /// A surface layer's Area constraints: both ways, or only against
+    /// shrinking ([`AreaMode`]). Default: [`AreaMode::Keep`] (`sinew
+    /// fit`'s skin: [`AreaMode::NoShrink`]).
+    #[serde(skip_serializing_if = "is_default_area_mode")]
+    pub area_mode: AreaMode,
     /// Velocity damping rate `c`: over a substep of `h` seconds the
     /// velocity keeps `e^(−c h)`, the same decay per second at any frame
     /// rate or substep count (`3.08` keeps 95 % per 1/60 s, what `0.05`
@@ -122,11 +127,45 @@ pub struct MuscleParams {
     /// Without it, a region that no target is within reach of hangs on the
     /// muscle's own edges and sags under gravity (the edges of a forearm
     /// muscle stretch ×24 in 10 frames on T7). The fibres and the volume
-    /// still shorten and bulge the muscle. Ignored for a muscle given an
-    /// explicit binding, and for one with no attachment on a bone.
+    /// still shorten and bulge the muscle; how much the hold lets go of a
+    /// contracting muscle is [`Self::hold_release`]. Ignored for a muscle
+    /// given an explicit binding, and for one with no attachment on a bone.
     /// Default: `false` (`sinew fit` turns it on).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub hold_shape: bool,
+    /// What is left of a held shape's pull ([`Self::hold_shape`]) at full
+    /// activation: the hold is a relaxed muscle's, and weakens as the
+    /// muscle contracts (its compliance ÷ `max(1 − a, hold_release)`), so
+    /// that an active muscle slides and bulges between its bones and the
+    /// hold brings it back to its rest shape once it relaxes. `1` holds
+    /// whatever the activation. T5's loosely packed arm needs `0.1`: held
+    /// at full strength the biceps' long head, dragged with the bones
+    /// through the flexion, fell to ×0.60 of its belly section (×1.23 with
+    /// `0.1`); `0.1` still carries an active muscle against gravity (a
+    /// 24 cm spindle held only at its ends sags ≤ 20 mm fully active).
+    /// Under a skin (`sinew fit`) the full hold keeps the biceps where the
+    /// skin shows their bulge (5.0–6.2 mm; with `0.1`, 2.9–4.3 mm). Range
+    /// `[0.01, 1]`. Default: `1`.
+    #[serde(skip_serializing_if = "is_one")]
+    pub hold_release: f32,
+}
+
+/// Whether `mode` is the default (left out of scene files).
+fn is_default_area_mode(mode: &AreaMode) -> bool {
+    *mode == AreaMode::default()
+}
+
+/// Whether `x` is 1 (a default left out of scene files).
+fn is_one(x: &f32) -> bool {
+    *x == 1.0
+}
+
+impl MuscleParams {
+    /// The factor a held shape's pull has at activation `a`: `1 − a`, no
+    /// less than [`Self::hold_release`].
+    pub fn hold_strength(&self, a: f32) -> f32 {
+        (1.0 - a.clamp(0.0, 1.0)).max(self.hold_release)
+    }
 }
 
 impl Default for MuscleParams {
@@ -145,11 +184,13 @@ impl Default for MuscleParams {
             weights: ConnectionWeights::default(),
             contact_reach: 0.003,
             sliding_mode: SlidingMode::default(),
+            area_mode: AreaMode::default(),
             damping: 3.08,
             mass: MassMode::default(),
             internal: InternalStructureParams::default(),
             fiber_smoothing: 3,
             hold_shape: false,
+            hold_release: 1.0,
         }
     }
 }
@@ -224,6 +265,7 @@ impl MuscleParams {
             ("rest_activation", self.rest_activation, 0.0, 1.0),
             ("max_contraction", self.max_contraction, 0.0, 1.0),
             ("damping", self.damping, 0.0, 1000.0),
+            ("hold_release", self.hold_release, 0.01, 1.0),
             (
                 "volume.gain",
                 self.volume.gain,
