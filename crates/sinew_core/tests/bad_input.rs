@@ -196,6 +196,36 @@ fn negative_or_nan_stiffness() {
 }
 
 #[test]
+fn a_hold_release_out_of_range_is_refused_by_name() {
+    for bad in [0.0, 1.5, f32::NAN] {
+        let mut desc = oval_desc();
+        desc.params.hold_shape = true;
+        desc.params.hold_release = bad;
+        let err = add(desc).unwrap_err();
+        assert!(
+            matches!(&err, BuildError::InvalidParameter { parameter, .. } if parameter == "hold_release"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn an_unknown_area_mode_in_a_scene_is_a_syntax_error_naming_it() {
+    let mut scene = builtin("P1").unwrap();
+    scene.muscles[0].params.area_mode = sinew_core::constraints::AreaMode::NoShrink;
+    let text = ron::ser::to_string_pretty(&scene, Default::default()).unwrap();
+    assert!(
+        text.contains("area_mode: NoShrink"),
+        "written when not the default"
+    );
+    let p = write("area_mode.ron", &text.replace("NoShrink", "Shrinkless"));
+    match Scene::load(&p) {
+        Err(e @ SceneError::Syntax { .. }) => assert!(e.to_string().contains("Shrinkless"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
 fn activation_outside_unit_range_is_clamped_and_reported_once() {
     let mut solver = builtin("T1").unwrap().instantiate(Path::new(".")).unwrap();
     solver.set_activation_curve(0, None);
