@@ -144,7 +144,7 @@ pub struct MuscleParams {
     /// `0.1`); `0.1` still carries an active muscle against gravity (a
     /// 24 cm spindle held only at its ends sags ≤ 20 mm fully active).
     /// Under a skin (`sinew fit`) the full hold keeps the biceps where the
-    /// skin shows their bulge (5.0–6.2 mm; with `0.1`, 2.9–4.3 mm). Range
+    /// skin shows their bulge (5.0–6.2 mm; with `0.1`, 4.5–5.6 mm). Range
     /// `[0.01, 1]`. Default: `1`.
     #[serde(skip_serializing_if = "is_one")]
     pub hold_release: f32,
