@@ -11,9 +11,9 @@
 //! that iteration. In [`AreaMode::NoShrink`] the constraint is one-sided,
 //! like a contact: the total multiplier stays ≥ 0, so it only pushes a
 //! shrunk triangle open and lets a stretched one be (its edges hold it) —
-//! what a skin over a bulging muscle needs. Compliance units: m³/N (`C` is an area: `α` is compared
-//! with `w |∇C|²`, in kg⁻¹·m²), scaled by the square of the scene's length
-//! unit like every SI parameter.
+//! what a skin over a bulging muscle needs. Compliance units: m³/N (`C`
+//! is an area: `α` is compared with `w |∇C|²`, in kg⁻¹·m²), scaled by the
+//! square of the scene's length unit like every SI parameter.
 
 use super::{
     ConstraintBatch, Correction, Gathered, MAX_PARTICLES, ParticleId, Particles, delta_lambda,

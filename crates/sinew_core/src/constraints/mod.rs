@@ -110,9 +110,10 @@ impl Correction {
 /// What a kernel is given of the particles one constraint moves, by value
 /// and in the slot order of [`ConstraintBatch::particles`] (a single-particle
 /// constraint reads slot 0, a pair slots 0 and 1; unused slots are zero):
-/// their positions and inverse masses, nothing else. A kernel cannot read a particle it does not move, which is what
-/// lets the colour sweeps (`solver::sweep`) run constraints of one colour on
-/// several threads with only their own particles in hand.
+/// their positions and inverse masses, nothing else. A kernel cannot read a
+/// particle it does not move, which is what lets the colour sweeps
+/// (`solver::sweep`) run constraints of one colour on several threads with
+/// only their own particles in hand.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gathered {
     /// Positions.

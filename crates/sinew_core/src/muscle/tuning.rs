@@ -50,20 +50,25 @@ impl Muscle {
     }
 
     /// The Bind compliance of a bound vertex of `strength`: the type's
-    /// compliance ÷ the strength, and for a muscle that holds its shape
-    /// also ÷ [`MuscleParams::hold_strength`] at its activation.
+    /// compliance (for a muscle that holds its shape ÷
+    /// [`MuscleParams::hold_strength`] at its activation) ÷ the strength.
     pub fn bind_compliance(&self, strength: f32) -> f32 {
+        self.bind_compliance_per_strength() / strength
+    }
+
+    /// [`Muscle::bind_compliance`] of a vertex of strength 1.
+    fn bind_compliance_per_strength(&self) -> f32 {
         let hold = if self.holds_shape() {
             self.params.hold_strength(self.params.activation)
         } else {
             1.0
         };
-        self.params.compliance.bind / (strength * hold)
+        self.params.compliance.bind / hold
     }
 
     /// Writes [`Muscle::bind_compliance`] into every Bind constraint.
     fn apply_bind_compliances(&mut self) {
-        let base = self.bind_compliance(1.0);
+        let base = self.bind_compliance_per_strength();
         let k = &mut self.constraints.bind;
         for (c, b) in k.compliance.iter_mut().zip(&self.binding) {
             *c = base / b.strength;
