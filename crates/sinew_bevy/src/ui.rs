@@ -322,35 +322,44 @@ fn view_toggles(ui: &mut egui::Ui, view: &mut ResMut<crate::view::SinewView>) {
 fn skin_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
     let mut edit = (**m).clone();
     let c = &mut edit.compliance;
-    for (name, value, hint) in [
+    // (label, compliance, smallest value the slider reaches, hint). Area's
+    // compliance is m³/N: its default, 1e-7, sits below the others' range.
+    for (name, value, smallest, hint) in [
         (
             "follow skeleton (bind)",
             &mut c.bind,
+            1e-6,
             "compliance of the pull towards the skinned position: larger lets muscles move the skin more",
         ),
         (
             "stretch",
             &mut c.fiber,
+            1e-6,
             "compliance of the skin's edges: larger stretches more",
         ),
         (
-            "area",
+            "area m³/N",
             &mut c.area,
-            "compliance of each triangle's area: larger lets the skin shear and gather into folds",
+            1e-10,
+            "compliance of each triangle's area: larger lets the skin gather into folds",
         ),
         (
             "slide",
             &mut c.sliding,
+            1e-6,
             "compliance of the contact with the muscles and bones below",
         ),
     ] {
-        ui.add(
-            egui::Slider::new(value, 0.0..=1.0)
-                .logarithmic(true)
-                .smallest_positive(1e-6)
-                .text(name),
-        )
-        .on_hover_text(hint);
+        let slider = egui::Slider::new(value, 0.0..=1.0)
+            .logarithmic(true)
+            .smallest_positive(smallest)
+            .text(name);
+        let slider = if smallest < 1e-6 {
+            slider.custom_formatter(|v, _| format!("{v:.1e}"))
+        } else {
+            slider
+        };
+        ui.add(slider).on_hover_text(hint);
     }
     ui.add(egui::Slider::new(&mut edit.damping, 0.0..=40.0).text("damping 1/s"));
     let mut n = edit.iterations.unwrap_or(10);
