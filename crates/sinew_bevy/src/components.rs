@@ -300,16 +300,7 @@ impl Muscle {
         let mut params = p.clone();
         self.write_to(&mut params);
         params.activation = 0.0;
-        params.validate(muscle)?;
-        if self.iterations == Some(0) {
-            return Err(BuildError::InvalidParameter {
-                muscle: muscle.into(),
-                parameter: "iterations".into(),
-                value: 0.0,
-                reason: "must be ≥ 1".into(),
-            });
-        }
-        Ok(())
+        params.validate(muscle)
     }
 }
 

@@ -1,6 +1,7 @@
 //! What the plug-in tells the app: a muscle was built or could not be
 //! (with a typed [`MuscleBuildError`]), attached, detached, an attachment
-//! could not be made, the settings were rejected. Each is
+//! could not be made, a muscle's frame blew up and was put back
+//! ([`MuscleFaulted`]), the settings were rejected. Each is
 //! an entity event for observers (`app.add_observer(|built: On<MuscleBuilt>| …)`)
 //! and a message for systems that read them in bulk ([`SinewLog`] keeps the
 //! last ones for the panel).
@@ -115,6 +116,18 @@ pub struct AttachmentRejected {
     pub error: Arc<MuscleBuildError>,
 }
 
+/// A muscle's frame blew up (a NaN or infinite state, or a particle faster
+/// than [`sinew_core::SolverSettings::max_speed`]): it was put back to its
+/// last good frame while the others ran on. The fault names the particle
+/// and the constraint that went bad first.
+#[derive(EntityEvent, Message, Clone, Debug)]
+pub struct MuscleFaulted {
+    /// The muscle.
+    pub entity: Entity,
+    /// What went wrong (the core's report).
+    pub fault: Arc<sinew_core::solver::Fault>,
+}
+
 /// The settings were rejected; the simulation keeps the last valid ones.
 #[derive(Event, Message, Clone, Debug)]
 pub struct SettingsRejected {
@@ -156,6 +169,7 @@ pub(crate) fn log_messages(
         MessageReader<MuscleDetached>,
         MessageReader<AttachmentRejected>,
     ),
+    mut faulted: MessageReader<MuscleFaulted>,
     names: Query<&Name>,
 ) {
     let name = |e: Entity| {
@@ -182,6 +196,9 @@ pub(crate) fn log_messages(
             name(m.entity),
             holder(m.bone)
         ));
+    }
+    for m in faulted.read() {
+        log.push(m.fault.to_string());
     }
     for m in refused.read() {
         log.push(format!(

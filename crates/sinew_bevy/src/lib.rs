@@ -133,7 +133,7 @@ pub mod prelude {
     pub use crate::debug::{SinewDebugPlugin, SinewDebugView};
     pub use crate::events::{
         AttachmentRejected, MuscleAttached, MuscleBuildError, MuscleBuildFailed, MuscleBuilt,
-        MuscleDetached, SettingsRejected, SinewLog,
+        MuscleDetached, MuscleFaulted, SettingsRejected, SinewLog,
     };
     pub use crate::relations::{
         AttachedTo, AttachmentOf, AttachmentRegion, Attachments, ConnectedFrom, ConnectionOf,
@@ -349,6 +349,7 @@ impl Plugin for SinewPlugin {
             .add_message::<events::MuscleAttached>()
             .add_message::<events::MuscleDetached>()
             .add_message::<events::AttachmentRejected>()
+            .add_message::<events::MuscleFaulted>()
             .add_message::<save::SaveScene>()
             .add_message::<save::SceneSaved>()
             .add_message::<save::SceneSaveFailed>()
@@ -468,6 +469,7 @@ impl Plugin for SinewPlugin {
                     .in_set(SinewSystems::ReadInputs),
                 systems::run_substeps.in_set(SinewSystems::Substeps),
                 (
+                    systems::guard_muscles,
                     constraint_table::report_constraint_sets,
                     systems::finish_timings,
                 )

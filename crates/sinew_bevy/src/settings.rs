@@ -129,6 +129,11 @@ pub struct SinewSettings {
     /// whatever `threads` says (as [`SolverSettings::parallel_threshold`]).
     /// Default `8192`.
     pub parallel_threshold: usize,
+    /// The run-time guard's speed limit (as [`SolverSettings::max_speed`]):
+    /// a muscle with a faster particle is put back to its last good frame
+    /// and reported ([`crate::events::MuscleFaulted`]). Units: m/s.
+    /// Default `100`.
+    pub max_speed: f32,
     /// Frames between two full closest-point searches of a vertex. Default `16`.
     pub full_search_interval: u32,
     /// Frames between two choices of a vertex's closest target. Default `4`.
@@ -164,6 +169,7 @@ impl From<SolverSettings> for SinewSettings {
             threads: s.threads,
             schedule: s.schedule,
             parallel_threshold: s.parallel_threshold,
+            max_speed: s.max_speed,
             full_search_interval: s.full_search_interval,
             choose_interval: s.choose_interval,
             feature_contacts: s.feature_contacts,
@@ -194,6 +200,7 @@ impl SinewSettings {
             threads: self.threads,
             schedule: self.schedule,
             parallel_threshold: self.parallel_threshold,
+            max_speed: self.max_speed,
         }
     }
 }

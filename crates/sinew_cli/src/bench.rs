@@ -106,8 +106,10 @@ pub enum Schedule {
 }
 
 impl Overrides {
-    /// Applies the overrides to a solver.
-    pub fn apply(&self, solver: &mut Solver) {
+    /// Applies the overrides to a solver and checks the settings they make
+    /// (an iteration count of 0, 100 000 threads, ω outside [1, 2] are
+    /// refused by name).
+    pub fn apply(&self, solver: &mut Solver) -> Result<(), sinew_core::BuildError> {
         if let Some(i) = self.iterations {
             solver.settings.iterations = i;
         }
@@ -124,6 +126,7 @@ impl Overrides {
                 Schedule::ByColor => SweepSchedule::ByColor,
             };
         }
+        solver.settings.validate()
     }
 }
 
@@ -180,7 +183,7 @@ fn run_once(
         }
     }
     let mut solver = spec.instantiate(&base)?;
-    overrides.apply(&mut solver);
+    overrides.apply(&mut solver)?;
     solver.settings.timers = timers;
     // Warm-up frame links targets and faults pages in.
     solver.step();

@@ -157,10 +157,10 @@ pub struct FitArgs {
     #[arg(long)]
     pub clip: Option<String>,
     /// Seconds from the bind pose to the clip's first pose.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::args::non_negative)]
     pub lead_in: f32,
     /// Seconds the scene lasts (the clip loops).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = crate::args::positive)]
     pub seconds: f32,
     /// Leave the character's skin out of the scene (by default it is a
     /// simulated layer over the muscles, bound to the joints).

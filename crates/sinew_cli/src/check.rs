@@ -18,54 +18,54 @@ type Result<T> = std::result::Result<T, Box<dyn Error>>;
 #[derive(Clone, Copy, Debug, clap::Args)]
 pub struct Limits {
     /// Largest attachment error, in millimetres.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::args::non_negative)]
     pub max_attachment_mm: f32,
     /// Largest share of surface vertices inside a bone in a checked frame, in percent.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = crate::args::non_negative)]
     pub max_penetration_pct: f32,
     /// Smallest edge length / rest length in any frame.
-    #[arg(long, default_value_t = 0.6)]
+    #[arg(long, default_value_t = 0.6, value_parser = crate::args::non_negative)]
     pub min_strain: f32,
     /// Largest edge length / rest length in any frame.
-    #[arg(long, default_value_t = 1.6)]
+    #[arg(long, default_value_t = 1.6, value_parser = crate::args::non_negative)]
     pub max_strain: f32,
     /// Most flipped (folded or inverted) triangles of a muscle in any frame.
     #[arg(long, default_value_t = 0)]
     pub max_flipped: usize,
     /// At rest: largest RMS surface velocity over the last second, in mm/s.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::args::non_negative)]
     pub max_rest_velocity_mm_s: f32,
     /// At rest: largest RMS surface acceleration over the last second, in m/s².
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, value_parser = crate::args::non_negative)]
     pub max_rest_jiggle: f32,
     /// At rest: smallest edge length / rest length over the last second.
-    #[arg(long, default_value_t = 0.8)]
+    #[arg(long, default_value_t = 0.8, value_parser = crate::args::non_negative)]
     pub min_rest_strain: f32,
     /// At rest: largest edge length / rest length over the last second.
-    #[arg(long, default_value_t = 1.25)]
+    #[arg(long, default_value_t = 1.25, value_parser = crate::args::non_negative)]
     pub max_rest_strain: f32,
     /// At rest: largest vertex distance from its rest position, in millimetres.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, value_parser = crate::args::non_negative)]
     pub max_rest_deviation_mm: f32,
     /// Seconds after the scene's last motion key from which the end of the
     /// run counts as at rest (the rest figures are judged only then).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = crate::args::non_negative)]
     pub settle: f32,
     /// Largest share of skin vertices inside a muscle or bone in a checked
     /// frame, in percent (scenes with a skin).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::args::non_negative)]
     pub max_skin_inside_pct: f32,
     /// At rest: largest distance of a skin vertex from its skinned
     /// position, in millimetres (scenes with a skin).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = crate::args::non_negative)]
     pub max_skin_bind_mm: f32,
     /// Smallest skin bulge over a muscle active at `--bulge-activation` or
     /// more: the skin's largest outward displacement from the plain skinned
     /// surface over it, in millimetres (scenes with a skin).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = crate::args::non_negative)]
     pub min_skin_bulge_mm: f32,
     /// Activation from which a muscle's skin bulge is measured (0–1).
-    #[arg(long, default_value_t = 0.8)]
+    #[arg(long, default_value_t = 0.8, value_parser = crate::args::unit_interval)]
     pub bulge_activation: f32,
 }
 
@@ -97,11 +97,11 @@ pub struct CheckArgs {
     /// Frames to simulate (default: the scene's).
     #[arg(long)]
     pub frames: Option<u32>,
-    /// Check penetration every N frames.
-    #[arg(long, default_value_t = 1)]
+    /// Check penetration every N frames (≥ 1).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub every: u32,
     /// Penetration depth counted, in millimetres.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = crate::args::non_negative)]
     pub depth_mm: f32,
     /// Hold every bone track, joint motion and activation curve at its first
     /// value: the scene at rest.
@@ -125,7 +125,7 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
         scene.hold_first_pose();
     }
     let mut solver = scene.instantiate(&base)?;
-    args.overrides.apply(&mut solver);
+    args.overrides.apply(&mut solver)?;
     let frames = args.frames.unwrap_or(scene.frames.max(1));
     let mut metrics = RunMetrics::new(&solver, args.depth_mm * 1e-3);
     metrics.penetration_every = args.every.max(1);

@@ -1,6 +1,6 @@
 //! `info`, `validate`, `bake` and `scene`.
 
-use sinew_core::bake::{Bake, BakeFormat};
+use sinew_core::bake::{Bake, BakeFormat, ExistingFiles};
 use sinew_core::mesh::{LoadOptions, load_mesh};
 use sinew_core::muscle::{ConstraintCounts, ConstraintKind};
 use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
@@ -255,6 +255,7 @@ pub fn bake(
     frames: Option<u32>,
     out: &Path,
     formats: &[BakeFormat],
+    replace: bool,
 ) -> Result<ExitCode> {
     let (scene, mut solver) = load_solver(arg)?;
     let frames = frames.unwrap_or(scene.frames.max(1));
@@ -263,7 +264,12 @@ pub fn bake(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {eta} left")
             .expect("valid template"),
     );
-    let mut bake = Bake::start(&solver, out, formats)?;
+    let existing = if replace {
+        ExistingFiles::Replace
+    } else {
+        ExistingFiles::Refuse
+    };
+    let mut bake = Bake::start_in(&solver, out, formats, existing)?;
     for _ in 1..=frames {
         solver.step();
         bake.record(&solver)?;

@@ -28,11 +28,11 @@ pub struct ImportArgs {
     /// Muscles (actuator names) to import, comma separated; default all.
     #[arg(long, value_delimiter = ',')]
     pub muscles: Vec<String>,
-    /// Approximate vertex count per muscle.
-    #[arg(long)]
+    /// Approximate vertex count per muscle (32–100000).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(32..=100_000))]
     pub resolution: Option<u32>,
     /// Belly radius of every muscle (m) instead of the one from its force.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::positive)]
     pub radius: Option<f32>,
     /// Output scene file (meshes go to `<stem>_meshes/` beside it).
     #[arg(long)]

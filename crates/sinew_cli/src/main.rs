@@ -1,5 +1,6 @@
 //! `sinew`: headless tools for MSXPBD scenes — info, validate, bake, bench.
 
+mod args;
 mod bench;
 mod character;
 mod check;
@@ -50,6 +51,11 @@ enum Command {
         /// the animated bones, metres).
         #[arg(long, value_delimiter = ',', default_value = "obj")]
         format: Vec<BakeFormat>,
+        /// Delete an earlier bake's files in the output folder first (by
+        /// default a folder holding bake files is refused, so two bakes
+        /// never mix).
+        #[arg(long)]
+        replace: bool,
     },
     /// Per-block ms/frame (median of runs) and ns per constraint-iteration.
     Bench {
@@ -106,11 +112,11 @@ enum Command {
         /// Camera direction.
         #[arg(long, value_enum, default_value = "front")]
         view: render::View,
-        /// Image width in pixels.
-        #[arg(long, default_value_t = 900)]
+        /// Image width in pixels (1–16384).
+        #[arg(long, default_value_t = 900, value_parser = clap::value_parser!(u32).range(1..=16384))]
         width: u32,
-        /// Image height in pixels.
-        #[arg(long, default_value_t = 900)]
+        /// Image height in pixels (1–16384).
+        #[arg(long, default_value_t = 900, value_parser = clap::value_parser!(u32).range(1..=16384))]
         height: u32,
         /// Leave the bones out.
         #[arg(long)]
@@ -145,7 +151,8 @@ fn main() -> ExitCode {
             frames,
             out,
             format,
-        } => commands::bake(&scene, frames, &out, &format),
+            replace,
+        } => commands::bake(&scene, frames, &out, &format, replace),
         Command::Bench {
             scene,
             frames,

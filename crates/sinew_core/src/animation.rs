@@ -54,6 +54,7 @@ fn locate(n: usize, time_at: impl Fn(usize) -> f32, time: f32) -> (usize, usize,
 
 /// A scalar curve of `(time s, value)` keys, held constant outside its range.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Curve {
     /// Keys sorted by time. Units: seconds.
     pub keys: Vec<(f32, f32)>,
@@ -80,10 +81,49 @@ impl Curve {
         let (a, b) = (self.keys[i].1, self.keys[j].1);
         a + (b - a) * self.interpolation.shape(t)
     }
+
+    /// Checks the keys: at least one, times finite and strictly increasing,
+    /// values finite and within `range`. The error names the key.
+    pub fn validate(&self, range: std::ops::RangeInclusive<f32>) -> Result<(), String> {
+        if self.keys.is_empty() {
+            return Err("the curve has no keys (give at least one, or none for no curve)".into());
+        }
+        check_times(self.keys.iter().map(|k| k.0))?;
+        for (i, &(time, value)) in self.keys.iter().enumerate() {
+            if !value.is_finite() || !range.contains(&value) {
+                return Err(format!(
+                    "key {i} (time {time} s) has value {value}, expected a finite value in [{}, {}]",
+                    range.start(),
+                    range.end()
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Key times must be finite and strictly increasing (a duplicated time is
+/// ambiguous: which value holds at it?).
+fn check_times(times: impl Iterator<Item = f32>) -> Result<(), String> {
+    let mut previous = f32::NEG_INFINITY;
+    for (i, time) in times.enumerate() {
+        if !time.is_finite() {
+            return Err(format!("key {i} has time {time}, expected a finite time"));
+        }
+        if time <= previous {
+            return Err(format!(
+                "key {i} has time {time} s, not after key {}'s {previous} s (keys must be sorted by time, without repeats)",
+                i - 1
+            ));
+        }
+        previous = time;
+    }
+    Ok(())
 }
 
 /// One rigid pose key.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TransformKey {
     /// Time. Units: s.
     pub time: f32,
@@ -100,6 +140,7 @@ fn identity_quat() -> Quat {
 
 /// A keyframed rigid transform (translation + rotation).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TransformTrack {
     /// Keys sorted by time.
     pub keys: Vec<TransformKey>,
@@ -129,6 +170,30 @@ impl TransformTrack {
             a.rotation.normalize().slerp(b.rotation.normalize(), s),
             a.translation.lerp(b.translation, s),
         )
+    }
+
+    /// Checks the keys: times finite and strictly increasing, translations
+    /// finite, rotations finite and of non-zero length (they are normalised
+    /// when sampled). An empty track is valid (identity). The error names
+    /// the key.
+    pub fn validate(&self) -> Result<(), String> {
+        check_times(self.keys.iter().map(|k| k.time))?;
+        for (i, k) in self.keys.iter().enumerate() {
+            if !k.translation.is_finite() {
+                return Err(format!(
+                    "key {i} (time {} s) has translation {}, expected finite coordinates",
+                    k.time, k.translation
+                ));
+            }
+            let length = k.rotation.length();
+            if !(length.is_finite() && length > 1e-6) {
+                return Err(format!(
+                    "key {i} (time {} s) has rotation {} of length {length}, expected a unit quaternion",
+                    k.time, k.rotation
+                ));
+            }
+        }
+        Ok(())
     }
 }
 

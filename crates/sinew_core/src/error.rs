@@ -100,6 +100,17 @@ pub enum MeshError {
         /// Total number of open edges.
         open_edges: usize,
     },
+    /// A closed mesh's faces point inwards (its signed volume is negative):
+    /// its muscle would be turned inside out by Volume and Sliding.
+    #[error(
+        "{file}: faces point inwards (signed volume {volume:.3e}); reverse them, or set `orient_outward: true` on the mesh file in the scene"
+    )]
+    InsideOut {
+        /// Offending file.
+        file: PathBuf,
+        /// The signed volume. Units: scene units³.
+        volume: f64,
+    },
     /// Two faces sharing an edge traverse it in the same direction.
     #[error("{file}: faces are inconsistently oriented at edge ({a}, {b})")]
     InconsistentOrientation {
@@ -136,10 +147,20 @@ pub enum BuildError {
         /// Why inference failed.
         reason: String,
     },
-    /// A parameter is NaN, negative or otherwise out of range.
+    /// A solver setting is NaN, negative or otherwise out of range.
+    #[error("solver settings: {setting} = {value} is invalid ({reason})")]
+    InvalidSetting {
+        /// Setting name, as in the scene's `settings`.
+        setting: String,
+        /// Offending value.
+        value: f32,
+        /// What is expected.
+        reason: String,
+    },
+    /// A muscle parameter is NaN, negative or otherwise out of range.
     #[error("muscle '{muscle}': parameter {parameter} = {value} is invalid ({reason})")]
     InvalidParameter {
-        /// Muscle name (or "solver").
+        /// Muscle name.
         muscle: String,
         /// Parameter name.
         parameter: String,
@@ -258,6 +279,30 @@ pub enum SceneError {
     /// Loading a mesh failed.
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    /// A scene file's content is invalid ([`crate::scene::Scene::validate`]):
+    /// the error, with the file it was read from.
+    #[error("{file}: {error}")]
+    InFile {
+        /// The scene file.
+        file: PathBuf,
+        /// What is wrong, naming the element.
+        #[source]
+        error: Box<SceneError>,
+    },
+}
+
+impl SceneError {
+    /// This error as found in `file`; errors that already name their file
+    /// (I/O, syntax, a mesh's) are returned as they are.
+    pub fn in_file(self, file: &std::path::Path) -> Self {
+        match self {
+            Self::Io { .. } | Self::Syntax { .. } | Self::Mesh(_) | Self::InFile { .. } => self,
+            error => Self::InFile {
+                file: file.to_path_buf(),
+                error: Box::new(error),
+            },
+        }
+    }
 }
 
 /// An MJCF model could not be imported, or a muscle could not be built from

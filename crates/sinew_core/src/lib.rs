@@ -43,6 +43,7 @@
 
 pub mod analysis;
 pub mod animation;
+pub mod atomic_file;
 pub mod bake;
 pub mod character;
 pub mod closest;
@@ -52,6 +53,7 @@ mod glb_container;
 pub mod import;
 pub mod mesh;
 pub mod muscle;
+mod ron_text;
 pub mod scene;
 pub mod sensor;
 pub mod skeleton;

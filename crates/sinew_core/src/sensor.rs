@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 /// A point fixed in a bone's frame.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct BonePoint {
     /// Bone name.
     pub bone: String,
@@ -33,6 +33,7 @@ pub struct BonePoint {
 
 /// What a sensor measures.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum SensorKind {
     /// Distance between two points. Units: m.
     Distance {
@@ -61,6 +62,7 @@ pub enum SensorKind {
 
 /// A named sensor.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SensorSpec {
     /// Unique name.
     pub name: String,
@@ -83,7 +85,7 @@ pub enum SensorOutput {
 /// Maps a raw sensor output to `[output.0, output.1]`: normalise with `input`
 /// (reversed ranges invert), shape with `ramp`, scale to `output`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct Remap {
     /// Raw value giving 0 and raw value giving 1.
     pub input: (f32, f32),
@@ -119,7 +121,7 @@ impl Remap {
 
 /// Filters a remapped sensor value into an activation (SPEC §8.3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct TriggerSpec {
     /// The gate opens at or above this value.
     pub threshold_on: f32,
@@ -150,7 +152,7 @@ impl Default for TriggerSpec {
 
 /// One sensor output through a remap and a trigger.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct SensorInput {
     /// Sensor name.
     pub sensor: String,
@@ -176,6 +178,7 @@ pub enum LayerInput {
 /// One step of a muscle's activation stack, applied in order to the running
 /// value (which starts at 0).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum ActivationLayer {
     /// Replace.
     Over(LayerInput),

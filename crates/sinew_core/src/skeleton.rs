@@ -38,7 +38,7 @@ impl JointKind {
 
 /// A joint of a body.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct JointSpec {
     /// Unique name.
     pub name: String,
@@ -54,7 +54,7 @@ pub struct JointSpec {
 
 /// A rigid body of the skeleton.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct BodySpec {
     /// Unique name.
     pub name: String,
@@ -70,7 +70,7 @@ pub struct BodySpec {
 
 /// Keyframes of one joint value over time.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct JointMotion {
     /// Joint name.
     pub joint: String,
@@ -86,7 +86,7 @@ pub struct JointMotion {
 /// without a driver. Knees use it to slide and roll the tibia and move the
 /// patella with the flexion angle.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct JointCoupling {
     /// The coupled joint (hinge or slide).
     pub joint: String,
@@ -98,7 +98,7 @@ pub struct JointCoupling {
 
 /// Bodies, joints and their animation, as stored in a scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct Skeleton {
     /// Bodies; a parent must come before its children.
     pub bodies: Vec<BodySpec>,
@@ -159,9 +159,8 @@ impl Skeleton {
         let mut value_count = 0;
         for (bi, b) in self.bodies.iter().enumerate() {
             let context = || format!("skeleton body {bi} '{}'", b.name);
-            if index.insert(b.name.clone(), bi).is_some() {
-                return Err(SceneError::DuplicateName(b.name.clone()));
-            }
+            // The parent is looked up before the body is listed, so a body
+            // cannot be its own parent and the hierarchy has no cycle.
             let parent = match &b.parent {
                 None => None,
                 Some(p) => Some(*index.get(p).ok_or_else(|| {
@@ -171,6 +170,9 @@ impl Skeleton {
                     )
                 })?),
             };
+            if index.insert(b.name.clone(), bi).is_some() {
+                return Err(SceneError::DuplicateName(b.name.clone()));
+            }
             if !b.translation.is_finite() || !b.rotation.is_finite() {
                 return Err(invalid(
                     context(),

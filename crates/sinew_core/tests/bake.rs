@@ -3,7 +3,7 @@
 //! the rest meshes and one bone key per frame, and bad output folders or
 //! broken caches give typed errors naming the file.
 
-use sinew_core::bake::{Bake, BakeError, BakeFormat, GLB_FILE, obj_file_name, pc2};
+use sinew_core::bake::{Bake, BakeError, BakeFormat, ExistingFiles, GLB_FILE, obj_file_name, pc2};
 use sinew_core::glam;
 use sinew_core::scene::{Scene, builtin};
 use std::path::{Path, PathBuf};
@@ -248,4 +248,53 @@ fn bad_folders_and_broken_caches_are_named() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
     std::fs::remove_file(&file).unwrap();
+}
+
+#[test]
+fn an_interrupted_bake_leaves_nothing_that_looks_complete_and_bakes_never_mix() {
+    let mut solver = builtin("P1").unwrap().instantiate(Path::new(".")).unwrap();
+    let out = scratch("interrupted");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "the user's own file").unwrap();
+    // Interrupted after three frames: dropped without `finish`.
+    let mut bake = Bake::start(&solver, &out, &[BakeFormat::Obj, BakeFormat::Pc2]).unwrap();
+    for _ in 0..2 {
+        solver.step();
+        bake.record(&solver).unwrap();
+    }
+    drop(bake);
+    let names = |dir: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    // Every OBJ frame is whole (written through a temporary file); the
+    // cache is still `.partial`, so no reader takes it for a finished one.
+    assert_eq!(
+        names(&out),
+        [
+            "frame_0000.obj",
+            "frame_0001.obj",
+            "frame_0002.obj",
+            "notes.txt",
+            "oval.pc2.partial"
+        ]
+    );
+    // A second bake into the folder is refused by name …
+    let error = Bake::start(&solver, &out, &[BakeFormat::Pc2]).unwrap_err();
+    match &error {
+        BakeError::Existing { folder, count, .. } => {
+            assert_eq!((folder, *count), (&out, 4), "{error}")
+        }
+        other => panic!("expected BakeError::Existing: {other}"),
+    }
+    assert!(error.to_string().contains("--replace"), "{error}");
+    // … unless told to replace it: only the bake's files go.
+    let bake = Bake::start_in(&solver, &out, &[BakeFormat::Pc2], ExistingFiles::Replace).unwrap();
+    bake.finish().unwrap();
+    assert_eq!(names(&out), ["notes.txt", "oval.pc2"]);
+    std::fs::remove_dir_all(&out).unwrap();
 }

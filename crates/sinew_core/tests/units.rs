@@ -61,6 +61,7 @@ fn brachialis_over_ground(unit: f32, method: SolverMethod, activation: f32) -> S
                 path: MESH.into(),
                 triangulate: false,
                 scale: unit,
+                orient_outward: false,
             },
             attachments: tips
                 .iter()

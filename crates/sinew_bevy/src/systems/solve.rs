@@ -4,6 +4,7 @@
 
 use super::{SolverWorkers, StepContext, pair, surface_of};
 use crate::components::*;
+use crate::events::MuscleFaulted;
 use crate::settings::{SimulationState, SinewClock, SinewTimings};
 use crate::{SinewIterationSchedule, SinewSubstepSchedule};
 use bevy::prelude::*;
@@ -11,8 +12,9 @@ use sinew_core::animation::interpolate_rigid;
 use sinew_core::closest::TargetSurface;
 use sinew_core::constraints::TargetId;
 use sinew_core::glam::Affine3A;
-use sinew_core::solver::{Stopwatch, passes, pipeline};
+use sinew_core::solver::{Stopwatch, guard, passes, pipeline};
 use std::cell::Cell;
+use std::sync::Arc;
 
 /// Runs the substep schedule once per substep, then closes the step. With
 /// worker threads the substeps run on one of them (as the plain solver's
@@ -158,6 +160,44 @@ pub(crate) fn end_substep(
         passes::end_substep_all(&workers.pool, muscles, &ctx.substep);
     });
     watch.lap(&mut timings.step.apply);
+}
+
+/// The run-time guard over every muscle after the step
+/// ([`sinew_core::solver::guard()`], as the plain solver runs it): a muscle
+/// that blew up is put back to its last good frame and reported as a
+/// [`MuscleFaulted`] message and entity event (logged on its first fault).
+pub(crate) fn guard_muscles(
+    mut commands: Commands,
+    ctx: Res<StepContext>,
+    clock: Res<SinewClock>,
+    mut muscles: Query<(Entity, &mut MuscleState, &mut SolverWorkspace)>,
+) {
+    let unit = ctx.settings.length_unit;
+    let max_speed = ctx.settings.max_speed * unit;
+    let order = ctx.frame.order;
+    for (i, (entity, mut state, mut ws)) in muscles.iter_mut().enumerate() {
+        let m = &mut state.muscle;
+        let found = guard(
+            m,
+            &mut ws.0,
+            clock.frame,
+            i,
+            max_speed,
+            unit,
+            order.as_slice(),
+        );
+        if let Some(fault) = found {
+            if fault.count == 1 {
+                warn!("sinew: {fault}");
+            }
+            let faulted = MuscleFaulted {
+                entity,
+                fault: Arc::new(fault),
+            };
+            commands.write_message(faulted.clone());
+            commands.trigger(faulted);
+        }
+    }
 }
 
 /// Publishes every targeted muscle's predictions as its snapshot

@@ -129,6 +129,55 @@ fn rejected_settings_are_announced_once() {
 }
 
 #[test]
+fn a_muscle_that_blows_up_is_put_back_and_announced() {
+    let mut app = app();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let seen_by_observer = seen.clone();
+    app.add_observer(move |faulted: On<MuscleFaulted>| {
+        seen_by_observer
+            .lock()
+            .unwrap()
+            .push((faulted.entity, faulted.fault.kind));
+    });
+    let bone = app.world_mut().spawn(SinewBone::new("hook")).id();
+    let muscle = app
+        .world_mut()
+        .spawn((Name::new("oval"), common::oval_on(bone)))
+        .id();
+    common::update_until(&mut app, |app| {
+        app.world().get::<MuscleState>(muscle).is_some()
+    });
+    for _ in 0..3 {
+        app.update();
+    }
+    let good = app
+        .world()
+        .get::<MuscleState>(muscle)
+        .unwrap()
+        .muscle
+        .x
+        .clone();
+    app.world_mut()
+        .get_mut::<MuscleState>(muscle)
+        .unwrap()
+        .muscle
+        .x[5] = CoreVec3::NAN;
+    app.update();
+    let seen = seen.lock().unwrap().clone();
+    assert_eq!(seen, [(muscle, sinew_core::solver::FaultKind::NonFinite)]);
+    let x = &app.world().get::<MuscleState>(muscle).unwrap().muscle.x;
+    assert_eq!(*x, good, "put back to its last good frame");
+    let log = app.world().resource::<SinewLog>();
+    assert!(
+        log.lines
+            .iter()
+            .any(|l| l.contains("muscle 'oval' went non-finite")),
+        "{:?}",
+        log.lines
+    );
+}
+
+#[test]
 fn reset_puts_a_hand_built_muscle_back_as_it_was_built() {
     let mut app = app();
     *app.world_mut().resource_mut::<SimulationState>() = SimulationState::Paused;

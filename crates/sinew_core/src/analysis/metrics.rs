@@ -16,6 +16,12 @@ pub struct RunMetrics {
     pub frames: u32,
     /// First frame with a NaN or infinite position, if any.
     pub first_non_finite: Option<u32>,
+    /// Muscle frames the run-time guard put back during the run (a NaN, an
+    /// infinity or a particle over the speed limit, see
+    /// [`crate::solver::Fault`]), and the first of them.
+    pub faults: (u64, Option<String>),
+    /// The solver's fault count when observing started.
+    faults_before: u64,
     /// Sum of attachment errors (for the mean). Units: m.
     pub attachment_error_sum: f64,
     /// Attachment error samples.
@@ -175,6 +181,8 @@ impl RunMetrics {
         Self {
             frames: 0,
             first_non_finite: None,
+            faults: (0, None),
+            faults_before: solver.fault_history().0,
             attachment_error_sum: 0.0,
             attachment_samples: 0,
             attachment_error_max: 0.0,
@@ -218,6 +226,11 @@ impl RunMetrics {
     pub fn observe(&mut self, solver: &Solver) {
         let frame = self.frames;
         self.frames += 1;
+        let (faults, first) = solver.fault_history();
+        self.faults.0 = faults - self.faults_before;
+        if self.faults.0 > 0 && self.faults.1.is_none() {
+            self.faults.1 = first.map(|f| f.to_string());
+        }
         let finite = solver
             .muscles()
             .iter()

@@ -119,12 +119,16 @@ impl RunMetrics {
         };
         push(
             "finite",
-            match self.first_non_finite {
-                None => "every frame".into(),
-                Some(f) => format!("NaN/inf at frame {f}"),
+            match (self.first_non_finite, &self.faults) {
+                (Some(f), _) => format!("NaN/inf at frame {f}"),
+                (None, (0, _)) => "every frame".into(),
+                (None, (n, first)) => format!(
+                    "{n} muscle frame(s) blew up and were put back; first: {}",
+                    first.as_deref().unwrap_or("?")
+                ),
             },
-            "every frame".into(),
-            Some(self.first_non_finite.is_none()),
+            "every frame, no fault".into(),
+            Some(self.first_non_finite.is_none() && self.faults.0 == 0),
         );
         let (i, e) = worst(&mut self.muscle_attachment_max.iter().map(|&e| f64::from(e)));
         push(

@@ -47,6 +47,19 @@ pub enum BakeError {
         #[source]
         source: std::io::Error,
     },
+    /// The output folder already holds files of a bake: a new bake would
+    /// mix its frames with theirs.
+    #[error(
+        "{folder}: already holds {count} bake file(s), e.g. {file}; choose an empty folder, or replace them (`sinew bake --replace`)"
+    )]
+    Existing {
+        /// The output folder.
+        folder: PathBuf,
+        /// One of the files found.
+        file: PathBuf,
+        /// How many bake files it holds.
+        count: usize,
+    },
     /// A file's contents, or what was asked of it, are wrong.
     #[error("{file}: {element}: {reason}")]
     Invalid {
@@ -132,10 +145,91 @@ pub struct Bake {
     files: Vec<PathBuf>,
 }
 
+/// What [`Bake::start_in`] does with bake files already in its folder.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExistingFiles {
+    /// Refuse to start ([`BakeError::Existing`]). Default.
+    #[default]
+    Refuse,
+    /// Delete them first (only bake files: frame OBJs, `.pc2`, the `.glb`
+    /// and `.partial` leftovers; nothing else in the folder is touched).
+    Replace,
+}
+
+/// Whether `name` is a file a bake writes (or its leftover while writing).
+fn is_bake_file(name: &str) -> bool {
+    let name = name
+        .strip_suffix(crate::atomic_file::PARTIAL_SUFFIX)
+        .unwrap_or(name);
+    let frame_obj = name
+        .strip_prefix("frame_")
+        .and_then(|n| n.strip_suffix(".obj"))
+        .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()));
+    frame_obj || name.ends_with(".pc2") || name == GLB_FILE
+}
+
+/// The bake files in `folder` (none when it does not exist).
+fn bake_files(folder: &Path) -> Result<Vec<PathBuf>, BakeError> {
+    let io = |source| BakeError::Io {
+        file: folder.to_path_buf(),
+        source,
+    };
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return Ok(Vec::new());
+    };
+    let mut files = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(io)?.path();
+        if path.is_file()
+            && path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(is_bake_file)
+        {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
 impl Bake {
     /// Creates `out` (and its parents) and records `solver`'s current state
-    /// as frame 0 in `formats`.
+    /// as frame 0 in `formats`; refuses a folder that already holds bake
+    /// files (see [`Bake::start_in`]).
     pub fn start(solver: &Solver, out: &Path, formats: &[BakeFormat]) -> Result<Self, BakeError> {
+        Self::start_in(solver, out, formats, ExistingFiles::Refuse)
+    }
+
+    /// As [`Bake::start`], with `existing` saying what happens to bake files
+    /// already in `out`. Every file is written whole or not at all (OBJ
+    /// frames and the `.glb` through [`crate::atomic_file`], `.pc2` caches as
+    /// `.partial` until [`Bake::finish`]).
+    pub fn start_in(
+        solver: &Solver,
+        out: &Path,
+        formats: &[BakeFormat],
+        existing: ExistingFiles,
+    ) -> Result<Self, BakeError> {
+        let found = bake_files(out)?;
+        match (existing, found.first()) {
+            (ExistingFiles::Refuse, Some(file)) => {
+                return Err(BakeError::Existing {
+                    folder: out.to_path_buf(),
+                    file: file.clone(),
+                    count: found.len(),
+                });
+            }
+            (ExistingFiles::Replace, _) => {
+                for file in &found {
+                    std::fs::remove_file(file).map_err(|source| BakeError::Io {
+                        file: file.clone(),
+                        source,
+                    })?;
+                }
+            }
+            _ => {}
+        }
         std::fs::create_dir_all(out).map_err(|source| BakeError::Io {
             file: out.to_path_buf(),
             source,
@@ -241,7 +335,7 @@ impl Bake {
                 .map_or_else(|| "sinew".into(), |n| n.to_string_lossy().into_owned());
             let bytes =
                 scene_glb::to_bytes(&name, &self.muscles, &self.nodes, &self.poses, self.dt);
-            std::fs::write(&file, bytes).map_err(|source| BakeError::Io {
+            crate::atomic_file::write(&file, bytes).map_err(|source| BakeError::Io {
                 file: file.clone(),
                 source,
             })?;
@@ -257,7 +351,7 @@ pub fn write_obj(solver: &Solver, path: &Path) -> Result<(), BakeError> {
     for m in solver.muscles() {
         obj.push(&m.name, m.surface_positions(), m.mesh.polygons(), None);
     }
-    std::fs::write(path, obj.into_text()).map_err(|source| BakeError::Io {
+    crate::atomic_file::write(path, obj.into_text()).map_err(|source| BakeError::Io {
         file: path.to_path_buf(),
         source,
     })

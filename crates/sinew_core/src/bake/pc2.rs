@@ -30,8 +30,10 @@ pub struct Pc2Writer {
 }
 
 impl Pc2Writer {
-    /// Creates `path` for `points` points per sample, the first sample at
-    /// frame `start_frame`, one sample every `sample_rate` frames.
+    /// Starts `path` for `points` points per sample, the first sample at
+    /// frame `start_frame`, one sample every `sample_rate` frames. The
+    /// samples go to `<path>.partial`, renamed to `path` by
+    /// [`Pc2Writer::finish`].
     pub fn create(
         path: &Path,
         points: usize,
@@ -47,7 +49,10 @@ impl Pc2Writer {
             element: "point count".into(),
             reason: format!("{points} points do not fit a .pc2 header"),
         })?;
-        let mut file = BufWriter::new(File::create(path).map_err(io)?);
+        // Written as `<name>.partial` and renamed by `finish`: an interrupted
+        // bake never leaves a cache that looks complete.
+        let partial = crate::atomic_file::partial_path(path);
+        let mut file = BufWriter::new(File::create(&partial).map_err(io)?);
         let mut header = Vec::with_capacity(HEADER_LEN as usize);
         header.extend(SIGNATURE);
         header.extend(1i32.to_le_bytes());
@@ -111,6 +116,7 @@ impl Pc2Writer {
         file.write_all(&(self.samples as i32).to_le_bytes())
             .map_err(io)?;
         file.sync_all().map_err(io)?;
+        std::fs::rename(crate::atomic_file::partial_path(&self.path), &self.path).map_err(io)?;
         Ok(self.samples)
     }
 }

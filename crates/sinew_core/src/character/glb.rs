@@ -14,7 +14,7 @@ use std::path::Path;
 /// Writes `character` (validated first) to `path` as a `.glb`.
 pub fn write(character: &SkinnedCharacter, path: &Path) -> Result<(), CharacterError> {
     let bytes = to_bytes(character)?;
-    std::fs::write(path, bytes).map_err(|source| CharacterError::Io {
+    crate::atomic_file::write(path, bytes).map_err(|source| CharacterError::Io {
         file: path.to_path_buf(),
         source,
     })

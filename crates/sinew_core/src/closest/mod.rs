@@ -301,8 +301,14 @@ impl TargetSurface {
     /// the per-iteration snapshot publish. The BVH keeps its boxes; the
     /// largest displacement since they were fitted (the slack) makes the full
     /// search conservative until [`TargetSurface::refit`] refits them. Normals
-    /// keep their values until [`TargetSurface::update_normals`].
+    /// keep their values until [`TargetSurface::update_normals`]. Positions
+    /// that are not all finite (a muscle blowing up) are not published: the
+    /// muscles sliding on it keep its last finite surface, and the run-time
+    /// guard ([`crate::solver::guard()`]) puts the muscle back.
     pub fn publish(&mut self, positions: &[Vec3]) {
+        if !positions.iter().all(|p| p.is_finite()) {
+            return;
+        }
         self.positions.clear();
         self.positions.extend_from_slice(positions);
         let moved = self

@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 
 /// Volume parameters of a muscle.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct VolumeParams {
     /// Create the constraint. Default: `true`.
     pub enabled: bool,

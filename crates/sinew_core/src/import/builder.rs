@@ -29,7 +29,7 @@ pub const MIN_SEGMENT: f32 = 1e-5;
 
 /// How finely and how thick a muscle is swept.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct SweepOptions {
     /// Vertices around each ring (≥ 3).
     pub around: u32,

@@ -17,6 +17,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod nesting;
 mod reader;
 
 /// Where an element was read: file and 1-based line.
@@ -161,12 +162,26 @@ impl Element {
 }
 
 const MAX_INCLUDE_DEPTH: usize = 16;
+/// Deepest element nesting read: every later walk over the tree (defaults,
+/// bodies) recurses at most this deep, so no file can exhaust the stack.
+/// myo-sim's deepest is about 20.
+const MAX_ELEMENT_DEPTH: usize = 256;
 
-fn read_element(path: &Path, depth: usize) -> Result<Element, ImportError> {
+/// Reads `path` with its includes; `chain` holds the files that include it
+/// (outermost first), so an include cycle is named file by file.
+fn read_element(path: &Path, chain: &[PathBuf]) -> Result<Element, ImportError> {
     let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
         file: path.to_path_buf(),
         source,
     })?;
+    if let Some((line, element)) = nesting::too_deep(&text, MAX_ELEMENT_DEPTH) {
+        return Err(ImportError::Model {
+            file: path.to_path_buf(),
+            line: line as u32,
+            element: element.into(),
+            reason: format!("elements nested more than {MAX_ELEMENT_DEPTH} deep"),
+        });
+    }
     let doc = roxmltree::Document::parse(&text).map_err(|e| {
         let pos = e.pos();
         ImportError::Xml {
@@ -177,19 +192,28 @@ fn read_element(path: &Path, depth: usize) -> Result<Element, ImportError> {
         }
     })?;
     let file: Arc<Path> = Arc::from(path);
-    convert(&doc, doc.root_element(), &file, depth)
+    let mut chain = chain.to_vec();
+    chain.push(path.canonicalize().unwrap_or_else(|_| path.to_path_buf()));
+    convert(&doc, doc.root_element(), &file, &chain, 0)
 }
 
 fn convert(
     doc: &roxmltree::Document,
     node: roxmltree::Node,
     file: &Arc<Path>,
-    depth: usize,
+    chain: &[PathBuf],
+    nesting: usize,
 ) -> Result<Element, ImportError> {
     let origin = Origin {
         file: file.clone(),
         line: doc.text_pos_at(node.range().start).row,
     };
+    if nesting >= MAX_ELEMENT_DEPTH {
+        return Err(origin.error(
+            node.tag_name().name(),
+            format!("elements nested more than {MAX_ELEMENT_DEPTH} deep"),
+        ));
+    }
     let mut children = Vec::new();
     for child in node.children().filter(|n| n.is_element()) {
         if child.tag_name().name() == "include" {
@@ -200,9 +224,6 @@ fn convert(
             let name = child
                 .attribute("file")
                 .ok_or_else(|| here.error("include", "missing attribute 'file'"))?;
-            if depth >= MAX_INCLUDE_DEPTH {
-                return Err(here.error("include", "includes nested too deeply (a cycle?)"));
-            }
             let target = file.parent().unwrap_or(Path::new(".")).join(name);
             if !target.is_file() {
                 return Err(here.error(
@@ -210,10 +231,25 @@ fn convert(
                     format!("included file '{}' does not exist", target.display()),
                 ));
             }
-            let included = read_element(&target, depth + 1)?;
+            let canonical = target.canonicalize().unwrap_or_else(|_| target.clone());
+            if let Some(first) = chain.iter().position(|f| *f == canonical) {
+                let cycle: Vec<String> = chain[first..]
+                    .iter()
+                    .chain([&canonical])
+                    .map(|f| f.display().to_string())
+                    .collect();
+                return Err(here.error("include", format!("include cycle: {}", cycle.join(" → "))));
+            }
+            if chain.len() >= MAX_INCLUDE_DEPTH {
+                return Err(here.error(
+                    "include",
+                    format!("includes nested more than {MAX_INCLUDE_DEPTH} deep"),
+                ));
+            }
+            let included = read_element(&target, chain)?;
             children.extend(included.children);
         } else {
-            children.push(convert(doc, child, file, depth)?);
+            children.push(convert(doc, child, file, chain, nesting + 1)?);
         }
     }
     Ok(Element {
@@ -304,7 +340,7 @@ impl MjcfModel {
     /// Reads an MJCF file (a `<mujoco>` model or a `<mujocoinclude>` fragment)
     /// with its includes.
     pub fn load(path: &Path) -> Result<Self, ImportError> {
-        let root = read_element(path, 0)?;
+        let root = read_element(path, &[])?;
         if root.tag != "mujoco" && root.tag != "mujocoinclude" {
             return Err(root.origin.error(
                 &root.tag,

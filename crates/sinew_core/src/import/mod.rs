@@ -380,6 +380,7 @@ pub fn import_model(
                 Some(BoneShape::Mesh {
                     file: path_string(&rel),
                     scale: 1.0,
+                    orient_outward: false,
                 })
             }
             _ => None,
@@ -413,6 +414,7 @@ pub fn import_model(
                 path: path_string(&rel),
                 triangulate: false,
                 scale: 1.0,
+                orient_outward: false,
             },
             roots: Roots::Vertices(m.tips.to_vec()),
             attachments,
@@ -539,7 +541,7 @@ pub fn write_obj<'a>(
 ) -> Result<(), ImportError> {
     let mut text = String::from("# written by sinew\n");
     crate::mesh::append_obj(&mut text, positions, polygons, 1, Some(6));
-    std::fs::write(path, text).map_err(|source| ImportError::Io {
+    crate::atomic_file::write(path, text).map_err(|source| ImportError::Io {
         file: path.to_path_buf(),
         source,
     })

@@ -14,7 +14,7 @@ pub enum BoneMeshes {
 
 /// A user mesh to use for a muscle instead of sweeping one.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct UserMuscleMesh {
     /// Muscle (actuator) name.
     pub muscle: String,
@@ -25,7 +25,7 @@ pub struct UserMuscleMesh {
 
 /// Per-muscle targets replacing the automatic choice.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct TargetOverride {
     /// Muscle name.
     pub muscle: String,
@@ -35,7 +35,7 @@ pub struct TargetOverride {
 
 /// How a model is turned into a scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct ImportOptions {
     /// Actuators to make muscles of; empty = every tendon actuator.
     pub muscles: Vec<String>,

@@ -5,7 +5,7 @@ use super::*;
 
 /// A model attached to the main one at a site.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct AttachModel {
     /// MJCF file, relative to the recipe.
     pub model: String,
@@ -17,7 +17,7 @@ pub struct AttachModel {
 
 /// The same activation stack for several muscles.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct MuscleDrive {
     /// Muscle names.
     pub muscles: Vec<String>,
@@ -28,7 +28,7 @@ pub struct MuscleDrive {
 /// Everything that makes a reference scene from an MJCF model, in one RON file:
 /// `sinew import-mjcf recipe.ron` regenerates the scene and its meshes.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct ImportRecipe {
     /// Scene name.
     pub name: String,
@@ -67,14 +67,7 @@ impl ImportRecipe {
             file: path.to_path_buf(),
             source,
         })?;
-        ron::from_str(&text).map_err(|e: ron::error::SpannedError| {
-            ImportError::Scene(crate::SceneError::Syntax {
-                file: path.to_path_buf(),
-                line: e.span.start.line,
-                column: e.span.start.col,
-                reason: e.code.to_string(),
-            })
-        })
+        Ok(crate::ron_text::parse(&text, path)?)
     }
 
     /// Imports, builds and writes the scene; returns it with its path and

@@ -1,4 +1,4 @@
-//! OBJ (our own order-preserving reader) and STL (`stl_io`) loading into
+//! OBJ (our own order-preserving reader) and STL (binary: ours; ASCII: `stl_io`) loading into
 //! [`SurfaceMesh`].
 
 use super::{SurfaceMesh, bounds_of, weld_positions};
@@ -22,6 +22,11 @@ pub struct LoadOptions {
     /// area) instead of failing. For targets such as scanned bones, which
     /// only need triangles; a muscle's faces must all be sound. Default: `false`.
     pub drop_degenerate_faces: bool,
+    /// Reverse every polygon when the faces point inwards (a closed mesh
+    /// with a negative signed volume), as some exporters write them.
+    /// Default: `false` (a muscle whose faces point inwards is refused by
+    /// [`crate::muscle::Muscle::build`], naming this option).
+    pub orient_outward: bool,
 }
 
 impl Default for LoadOptions {
@@ -31,6 +36,7 @@ impl Default for LoadOptions {
             triangulate: false,
             scale: 1.0,
             drop_degenerate_faces: false,
+            orient_outward: false,
         }
     }
 }
@@ -96,6 +102,9 @@ pub(crate) fn from_raw(
     if options.drop_degenerate_faces {
         let min_area = super::min_polygon_area(&positions);
         polygons.retain(|poly| !super::is_degenerate(&positions, poly, min_area));
+    }
+    if options.orient_outward {
+        polygons = super::primitives::oriented_outward(&positions, polygons);
     }
     let mesh = SurfaceMesh::new(path, positions, &polygons)?;
     Ok(if options.triangulate {
@@ -262,24 +271,68 @@ fn read_obj(path: &Path) -> Result<ObjText, MeshError> {
 /// An OBJ's positions, polygons, and the group names above each polygon.
 type ObjText = (Vec<Vec3>, Vec<Vec<u32>>, Vec<String>);
 
+/// Bytes of a binary STL's header (80) and triangle count (4).
+const STL_HEADER: usize = 84;
+/// Bytes per binary STL triangle: normal and three corners (12 `f32`) and a
+/// `u16` attribute.
+const STL_TRIANGLE: usize = 50;
+
+/// A binary STL when its size matches the triangle count in its header, an
+/// ASCII STL when it starts with `solid`; a binary file whose header count
+/// disagrees with its size (triangles that would be dropped or read past the
+/// end) is an error.
 fn read_stl(path: &Path) -> Result<Raw, MeshError> {
-    let file = std::fs::File::open(path).map_err(|source| MeshError::Io {
+    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
         file: path.to_path_buf(),
         source,
     })?;
-    let mut reader = std::io::BufReader::new(file);
-    let parse_err = |e: std::io::Error| MeshError::Parse {
+    let parse_err = |reason: String| MeshError::Parse {
         file: path.to_path_buf(),
-        reason: e.to_string(),
+        reason,
     };
-    let triangles = stl_io::create_stl_reader(&mut reader).map_err(parse_err)?;
+    let counted = bytes
+        .get(80..STL_HEADER)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as usize);
     let mut positions = Vec::new();
     let mut polygons = Vec::new();
-    for tri in triangles {
-        let tri = tri.map_err(parse_err)?;
+    let mut push = |corners: [[f32; 3]; 3]| {
         let base = positions.len() as u32;
-        positions.extend(tri.vertices.iter().map(|v| Vec3::from_array(v.0)));
+        positions.extend(corners.map(Vec3::from_array));
         polygons.push(vec![base, base + 1, base + 2]);
+    };
+    match counted {
+        Some(count) if STL_HEADER + count * STL_TRIANGLE == bytes.len() => {
+            for record in bytes[STL_HEADER..].chunks_exact(STL_TRIANGLE) {
+                let float = |k: usize| {
+                    let at = 12 + 4 * k;
+                    f32::from_le_bytes([record[at], record[at + 1], record[at + 2], record[at + 3]])
+                };
+                push([0, 1, 2].map(|c| [0, 1, 2].map(|a| float(3 * c + a))));
+            }
+        }
+        _ if bytes.trim_ascii_start().starts_with(b"solid") => {
+            let mut reader = std::io::Cursor::new(&bytes);
+            let triangles = stl_io::create_stl_reader(&mut reader)
+                .map_err(|e| parse_err(format!("ASCII STL: {e}")))?;
+            for tri in triangles {
+                let tri = tri.map_err(|e| parse_err(format!("ASCII STL: {e}")))?;
+                push(tri.vertices.map(|v| v.0));
+            }
+        }
+        Some(count) => {
+            let held = (bytes.len() - STL_HEADER) as f64 / STL_TRIANGLE as f64;
+            return Err(parse_err(format!(
+                "binary STL header counts {count} triangles but the file's {} bytes hold {held} \
+                 ({STL_HEADER} + {STL_TRIANGLE} per triangle): truncated or corrupt",
+                bytes.len()
+            )));
+        }
+        None => {
+            return Err(parse_err(format!(
+                "{} bytes: too short for a binary STL and not an ASCII one (no `solid`)",
+                bytes.len()
+            )));
+        }
     }
     // STL stores every triangle separately: welding is what makes it a surface.
     Ok((positions, polygons))
@@ -288,6 +341,62 @@ fn read_stl(path: &Path) -> Result<Raw, MeshError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A binary STL of `triangles`, with `header` (a binary header may
+    /// start with `solid`, as some exporters write) and the triangle count
+    /// `count` in it.
+    fn binary_stl(header: &[u8], count: u32, triangles: &[[[f32; 3]; 3]]) -> Vec<u8> {
+        let mut bytes = header.to_vec();
+        bytes.resize(80, b' ');
+        bytes.extend(count.to_le_bytes());
+        for t in triangles {
+            bytes.extend(
+                [0f32; 3]
+                    .iter()
+                    .chain(t.iter().flatten())
+                    .flat_map(|x| x.to_le_bytes()),
+            );
+            bytes.extend([0u8; 2]);
+        }
+        bytes
+    }
+
+    /// Binary STLs read as `stl_io` reads them, even with a header that
+    /// starts with `solid`; a header count that disagrees with the size is
+    /// an error naming both.
+    #[test]
+    fn binary_stl_is_read_whole_or_refused() {
+        let triangles = [
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.5]],
+        ];
+        let path = std::env::temp_dir().join(format!("sinew_stl_{}.stl", std::process::id()));
+        for header in [b"binary".as_slice(), b"solid but binary"] {
+            std::fs::write(&path, binary_stl(header, 2, &triangles)).unwrap();
+            let (positions, polygons) = read_stl(&path).unwrap();
+            let mut reader = std::io::Cursor::new(binary_stl(b"binary", 2, &triangles));
+            let theirs: Vec<Vec3> = stl_io::create_stl_reader(&mut reader)
+                .unwrap()
+                .flat_map(|t| t.unwrap().vertices.map(|v| Vec3::from_array(v.0)))
+                .collect();
+            assert_eq!(positions, theirs);
+            assert_eq!(polygons, [vec![0, 1, 2], vec![3, 4, 5]]);
+        }
+        for count in [1, 3, 1_000_000] {
+            std::fs::write(&path, binary_stl(b"binary", count, &triangles)).unwrap();
+            let e = read_stl(&path).unwrap_err().to_string();
+            assert!(e.contains(&format!("counts {count} triangles")), "{e}");
+            assert!(e.contains("184 bytes hold 2"), "{e}");
+        }
+        std::fs::write(&path, b"short").unwrap();
+        assert!(
+            read_stl(&path)
+                .unwrap_err()
+                .to_string()
+                .contains("too short")
+        );
+        std::fs::remove_file(&path).ok();
+    }
 
     #[test]
     fn obj_keeps_the_file_vertex_order() {

@@ -12,6 +12,7 @@ use std::f32::consts::{PI, TAU};
 
 /// Generators the scene format can name instead of a mesh file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum MeshGenerator {
     /// UV ellipsoid along +X (poles on the X axis): `segments` around,
     /// `stacks` from pole to pole. 10×10 gives the thesis' 92-vertex oval.
@@ -82,6 +83,9 @@ impl MeshGenerator {
             face: 0,
             reason: format!("generator parameters: {reason}"),
         };
+        if let Some(reason) = self.out_of_bounds() {
+            return Err(bad(&reason));
+        }
         let (positions, polygons) = match *self {
             Self::Ellipsoid {
                 center,
@@ -153,6 +157,84 @@ impl MeshGenerator {
         SurfaceMesh::new(source, positions, &polygons)
     }
 }
+
+impl MeshGenerator {
+    /// Why the parameters cannot make a mesh of sane size: a coordinate or
+    /// radius that is not finite, or more than [`MAX_GENERATED_VERTICES`]
+    /// vertices (counted in 64 bits, so no count overflows).
+    fn out_of_bounds(&self) -> Option<String> {
+        let (floats, vertices): (Vec<f32>, u64) = match *self {
+            Self::Ellipsoid {
+                center,
+                radii,
+                segments,
+                stacks,
+            } => (
+                [center.to_array(), radii.to_array()].concat(),
+                u64::from(segments) * u64::from(stacks.saturating_sub(1)) + 2,
+            ),
+            Self::Box {
+                center,
+                size,
+                divisions: [a, b, c],
+            } => {
+                let [a, b, c] = [a, b, c].map(|d| u64::from(d) + 1);
+                (
+                    [center.to_array(), size.to_array()].concat(),
+                    2 * (a * b + b * c + c * a),
+                )
+            }
+            Self::Fusiform {
+                start,
+                end,
+                belly_radius,
+                tendon_radius,
+                around,
+                rings,
+            } => (
+                [
+                    start.to_array().as_slice(),
+                    &end.to_array(),
+                    &[belly_radius, tendon_radius],
+                ]
+                .concat(),
+                u64::from(around) * u64::from(rings) + 2,
+            ),
+            Self::Bifurcated {
+                end,
+                junction,
+                head_a,
+                head_b,
+                belly_radius,
+                head_radius,
+                half_around,
+                belly_rings,
+                head_rings,
+            } => (
+                [
+                    end.to_array().as_slice(),
+                    &junction.to_array(),
+                    &head_a.to_array(),
+                    &head_b.to_array(),
+                    &[belly_radius, head_radius],
+                ]
+                .concat(),
+                2 * u64::from(half_around) * (u64::from(belly_rings) + 2 * u64::from(head_rings))
+                    + 3,
+            ),
+        };
+        if let Some(x) = floats.iter().find(|x| !x.is_finite()) {
+            return Some(format!("a coordinate or radius is {x}, expected finite"));
+        }
+        (vertices > MAX_GENERATED_VERTICES).then(|| {
+            format!("about {vertices} vertices, more than the {MAX_GENERATED_VERTICES} a generator makes")
+        })
+    }
+}
+
+/// Most vertices a [`MeshGenerator`] makes (a typo such as `segments:
+/// 100000` would otherwise allocate gigabytes).
+pub const MAX_GENERATED_VERTICES: u64 = 1_000_000;
 
 /// Flips every polygon when the signed volume is negative.
 pub(crate) fn oriented_outward(positions: &[Vec3], mut polygons: Vec<Vec<u32>>) -> Vec<Vec<u32>> {

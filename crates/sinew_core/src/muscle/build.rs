@@ -63,6 +63,12 @@ impl Muscle {
                     .expect_err("mesh is not closed"),
             ));
         }
+        if closed && report.volume < 0.0 {
+            return Err(BuildError::Mesh(crate::MeshError::InsideOut {
+                file: mesh.source.clone(),
+                volume: report.volume,
+            }));
+        }
         if !report.non_manifold_edges.is_empty() {
             return Err(BuildError::Mesh(
                 report.into_result(&mesh.source).expect_err("non-manifold"),

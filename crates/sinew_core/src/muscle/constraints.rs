@@ -141,7 +141,7 @@ macro_rules! muscle_constraint_table {
         /// `1e-2` is jelly. Sliding, Soft and Hard are divided by the
         /// painted weight of each vertex.
         #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-        #[serde(default)]
+        #[serde(deny_unknown_fields, default)]
         pub struct Compliances {
             $(
                 #[doc = concat!($label, ". Default: `", stringify!($default), "`.")]

@@ -134,7 +134,7 @@ pub enum TargetRef {
 
 /// Optional per-vertex maps (one value per surface vertex).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct VertexMaps {
     /// Sliding weight per vertex (replaces `weights.sliding`).
     pub sliding: Option<Vec<f32>>,

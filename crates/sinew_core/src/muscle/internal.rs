@@ -22,7 +22,7 @@ use std::collections::{BTreeSet, VecDeque};
 
 /// Options for [`InternalStructure::build`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct InternalStructureParams {
     /// Build the structure at all (the thesis' SMT-G* build turns it off). Default: `true`.
     pub enabled: bool,

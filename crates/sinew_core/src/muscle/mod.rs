@@ -23,7 +23,7 @@ pub(crate) use desc::held_by;
 pub use desc::{AttachmentDesc, MuscleDesc, Roots, TargetRef, VertexMaps};
 pub use fiber::{fiber_field, longest_axis};
 pub use internal::{InternalStructure, InternalStructureParams};
-pub use params::{ConnectionWeights, MassMode, MuscleParams};
+pub use params::{ConnectionWeights, MAX_FIBER_SMOOTHING, MassMode, MuscleParams};
 
 use crate::constraints::{ActivationScale, ParticleId, TargetSlot};
 use crate::error::BuildError;

@@ -6,11 +6,14 @@ use crate::constraints::{AreaMode, FiberMode, SlidingMode, VolumeParams};
 use crate::error::BuildError;
 use serde::{Deserialize, Serialize};
 
+/// Most fibre smoothing passes [`MuscleParams::validate`] accepts.
+pub const MAX_FIBER_SMOOTHING: u32 = 1_000;
+
 /// Default weights of the three target connections, normalised per vertex
 /// when `normalize` is set (as AdonisFX does). A weight of 0 disables that
 /// connection for the vertex (the constraint exists but is skipped).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct ConnectionWeights {
     /// Sliding weight. Default: `1.0`.
     pub sliding: f32,
@@ -59,7 +62,7 @@ impl Default for MassMode {
 
 /// All parameters of one muscle.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct MuscleParams {
     /// Activation `a ∈ [0, 1]` (dynamic; clamped and reported once when outside).
     /// Default: `0`.
@@ -113,7 +116,8 @@ pub struct MuscleParams {
     pub mass: MassMode,
     /// Internal structure options.
     pub internal: InternalStructureParams,
-    /// Laplacian smoothing passes of the fibre field. Default: `3`.
+    /// Laplacian smoothing passes of the fibre field. Range `[0, 1000]`.
+    /// Default: `3`.
     pub fiber_smoothing: u32,
     /// Holds the muscle's shape on its bones: each surface vertex is bound
     /// softly (the Bind constraint, compliance [`Compliances::bind`] ÷ its
@@ -256,12 +260,7 @@ impl MuscleParams {
             }
         }
         let checks = [
-            (
-                "activation",
-                self.activation,
-                f32::NEG_INFINITY,
-                f32::INFINITY,
-            ),
+            ("activation", self.activation, 0.0, 1.0),
             ("rest_activation", self.rest_activation, 0.0, 1.0),
             ("max_contraction", self.max_contraction, 0.0, 1.0),
             ("damping", self.damping, 0.0, 1000.0),
@@ -285,12 +284,32 @@ impl MuscleParams {
         ];
         for (name, value, lo, hi) in checks {
             if value.is_nan() || value < lo || value > hi || value.is_infinite() {
-                return Err(bad(
-                    name,
-                    value,
-                    &format!("expected a finite value in [{lo}, {hi}]"),
-                ));
+                let expected = match (lo, hi) {
+                    (f32::MIN_POSITIVE, f32::INFINITY) => "a finite value > 0".to_string(),
+                    (lo, f32::INFINITY | f32::MAX) => format!("a finite value ≥ {lo}"),
+                    (lo, hi) => format!("a value in [{lo}, {hi}]"),
+                };
+                return Err(bad(name, value, &format!("expected {expected}")));
             }
+        }
+        if let Some(iterations) = self.iterations
+            && !(1..=crate::solver::MAX_ITERATIONS).contains(&iterations)
+        {
+            return Err(bad(
+                "iterations",
+                iterations as f32,
+                &format!(
+                    "expected None (the solver's count) or 1 to {}",
+                    crate::solver::MAX_ITERATIONS
+                ),
+            ));
+        }
+        if self.fiber_smoothing > MAX_FIBER_SMOOTHING {
+            return Err(bad(
+                "fiber_smoothing",
+                self.fiber_smoothing as f32,
+                &format!("expected at most {MAX_FIBER_SMOOTHING} passes"),
+            ));
         }
         match self.mass {
             MassMode::Uniform(m) | MassMode::Density(m) | MassMode::AreaDensity(m)

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 /// A skin binding in a scene: per surface vertex, up to four bones (named
 /// through `bones`) and weights, as a glTF skin's `JOINTS_0`/`WEIGHTS_0`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct SkinBindingSpec {
     /// The bones the influences index, by name.
     pub bones: Vec<String>,

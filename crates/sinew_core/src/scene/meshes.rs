@@ -21,13 +21,31 @@ pub(super) fn bone_mesh(
     base_dir: &Path,
 ) -> Result<SurfaceMesh, SceneError> {
     Ok(match shape {
-        BoneShape::Mesh { file, scale } => load_mesh(
-            &resolve(base_dir, file),
-            &LoadOptions {
-                scale: *scale,
-                ..Default::default()
-            },
-        )?,
+        BoneShape::Mesh {
+            file,
+            scale,
+            orient_outward,
+        } => {
+            let mesh = load_mesh(
+                &resolve(base_dir, file),
+                &LoadOptions {
+                    scale: *scale,
+                    orient_outward: *orient_outward,
+                    ..Default::default()
+                },
+            )?;
+            // A closed bone whose faces point inwards would push muscles
+            // into it (Sliding keeps them on the side its normals face).
+            let report = mesh.report();
+            if report.is_closed_manifold() && report.volume < 0.0 {
+                return Err(crate::MeshError::InsideOut {
+                    file: mesh.source.clone(),
+                    volume: report.volume,
+                }
+                .into());
+            }
+            mesh
+        }
         BoneShape::Plane {
             center,
             normal,
@@ -73,11 +91,13 @@ pub(super) fn muscle_mesh(
             path,
             triangulate,
             scale,
+            orient_outward,
         } => load_mesh(
             &resolve(base_dir, path),
             &LoadOptions {
                 triangulate: *triangulate,
                 scale: *scale,
+                orient_outward: *orient_outward,
                 ..Default::default()
             },
         )?,

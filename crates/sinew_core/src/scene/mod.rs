@@ -26,6 +26,7 @@
 mod binding;
 mod builtin;
 mod meshes;
+mod validate;
 
 pub use binding::SkinBindingSpec;
 pub use builtin::{BUILTIN_SCENES, builtin};
@@ -45,7 +46,7 @@ use std::path::Path;
 
 /// A whole scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct Scene {
     /// Scene name.
     pub name: String,
@@ -67,7 +68,7 @@ pub struct Scene {
 
 /// A bone: its shape (optional; needed to be a target) and its animation.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct BoneSpec {
     /// Unique name.
     pub name: String,
@@ -81,6 +82,7 @@ pub struct BoneSpec {
 
 /// Geometry of a bone.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum BoneShape {
     /// An OBJ or STL file (relative to the scene), optionally scaled.
     Mesh {
@@ -89,6 +91,10 @@ pub enum BoneShape {
         /// Scale factor applied on load. Default: 1.
         #[serde(default = "one")]
         scale: f32,
+        /// Reverse the faces of a closed mesh whose faces point inwards
+        /// (negative volume) instead of refusing it. Default: false.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        orient_outward: bool,
     },
     /// A square plane (two triangles) of side `size`, facing `normal`.
     Plane {
@@ -109,6 +115,7 @@ fn one() -> f32 {
 
 /// Where a muscle's mesh comes from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum MeshSource {
     /// OBJ or STL file relative to the scene.
     File {
@@ -120,6 +127,10 @@ pub enum MeshSource {
         /// Scale applied on load. Default: 1.
         #[serde(default = "one")]
         scale: f32,
+        /// Reverse the faces of a closed mesh whose faces point inwards
+        /// (negative volume) instead of refusing it. Default: false.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        orient_outward: bool,
     },
     /// A built-in generator.
     Generator(MeshGenerator),
@@ -133,7 +144,7 @@ impl Default for MeshSource {
 
 /// An attachment in a scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct AttachmentSpec {
     /// Bone name; `None` pins to the world.
     pub bone: Option<String>,
@@ -153,7 +164,7 @@ fn is_zero(x: &f32) -> bool {
 
 /// A muscle in a scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct MuscleSpec {
     /// Unique name.
     pub name: String,
@@ -180,23 +191,22 @@ pub struct MuscleSpec {
 }
 
 impl Scene {
-    /// Reads a RON scene. Syntax errors carry line and column.
+    /// Reads a RON scene and [validates](Scene::validate) it. Syntax errors
+    /// carry line and column; a misspelt field names the nearest valid one.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
             file: path.to_path_buf(),
             source,
         })?;
-        Self::from_ron(&text, path)
+        let scene = Self::from_ron(&text, path)?;
+        scene.validate().map_err(|e| e.in_file(path))?;
+        Ok(scene)
     }
 
-    /// Parses RON text; `path` is used in error messages.
+    /// Parses RON text; `path` is used in error messages. Unknown fields
+    /// are errors; values are checked by [`Scene::validate`].
     pub fn from_ron(text: &str, path: &Path) -> Result<Self, SceneError> {
-        ron::from_str(text).map_err(|e: ron::error::SpannedError| SceneError::Syntax {
-            file: path.to_path_buf(),
-            line: e.span.start.line,
-            column: e.span.start.col,
-            reason: e.code.to_string(),
-        })
+        crate::ron_text::parse(text, path)
     }
 
     /// RON text of the scene.
@@ -210,7 +220,7 @@ impl Scene {
     /// Writes the scene as RON.
     pub fn save(&self, path: &Path) -> Result<(), SceneError> {
         let text = self.to_ron()?;
-        std::fs::write(path, text).map_err(|source| SceneError::Io {
+        crate::atomic_file::write(path, text).map_err(|source| SceneError::Io {
             file: path.to_path_buf(),
             source,
         })
@@ -288,7 +298,7 @@ impl Scene {
 
     /// Builds a [`Solver`] from the scene; mesh paths are relative to `base_dir`.
     pub fn instantiate(&self, base_dir: &Path) -> Result<Solver, SceneError> {
-        self.check_names()?;
+        self.validate()?;
         let (bone_meshes, muscle_meshes) = self.load_meshes(base_dir)?;
         let mut solver = Solver::new(self.settings.clone())?;
         if let Some(skeleton) = &self.skeleton {
@@ -383,21 +393,6 @@ impl Scene {
         }
         solver.prepare();
         Ok(solver)
-    }
-
-    fn check_names(&self) -> Result<(), SceneError> {
-        let mut seen = std::collections::HashSet::new();
-        for name in self
-            .bones
-            .iter()
-            .map(|b| &b.name)
-            .chain(self.muscles.iter().map(|m| &m.name))
-        {
-            if !seen.insert(name) {
-                return Err(SceneError::DuplicateName(name.clone()));
-            }
-        }
-        Ok(())
     }
 }
 

@@ -22,6 +22,7 @@
 mod closest_data;
 pub mod coloring;
 mod constraint_ref;
+mod guard;
 pub mod jacobi;
 mod link;
 mod momentum;
@@ -35,12 +36,17 @@ mod sweep;
 mod timings;
 mod workspace;
 
+pub use constraint_ref::ConstraintRef;
+pub use guard::{Fault, FaultKind, guard};
 pub use momentum::RigidMomentum;
 pub use parallel::{BorrowBuffer, MusclePair, WorkerPool, for_each_muscle};
 pub use params::{
     ClosestSchedule, FrameParams, IterationParams, Parallelism, ProjectionOrder, SubstepParams,
 };
-pub use settings::{ColorScope, SolverMethod, SolverSettings, SweepSchedule};
+pub use settings::{
+    ColorScope, MAX_DT, MAX_GRAVITY, MAX_ITERATIONS, MAX_SUBSTEPS, MAX_THREADS, SolverMethod,
+    SolverSettings, SweepSchedule,
+};
 pub use timings::{StepTimings, Stopwatch, TaskSplit};
 pub use workspace::MuscleWorkspace;
 
@@ -126,6 +132,9 @@ pub struct Solver {
     frame: u64,
     timings: StepTimings,
     warnings: Vec<String>,
+    faults: Vec<Fault>,
+    /// Faults over the solver's life, and the first of them.
+    fault_history: (u64, Option<Fault>),
     skeleton: Option<SkeletonState>,
     activation_rig: Option<ActivationRig>,
     /// Per muscle, what the solver derives from it (plans, caches).
@@ -163,6 +172,8 @@ impl Solver {
             frame: 0,
             timings: StepTimings::default(),
             warnings: Vec::new(),
+            faults: Vec::new(),
+            fault_history: (0, None),
             skeleton: None,
             activation_rig: None,
             pool: WorkerPool::default(),
@@ -469,6 +480,21 @@ impl Solver {
     /// Warnings raised so far (clamped activations …), drained.
     pub fn take_warnings(&mut self) -> Vec<String> {
         std::mem::take(&mut self.warnings)
+    }
+
+    /// Muscles whose frame blew up since the last call (non-finite or
+    /// faster than [`SolverSettings::max_speed`]): each was put back to its
+    /// last good frame while the others ran on. The first fault of a
+    /// muscle is also a warning ([`Solver::take_warnings`]).
+    pub fn take_faults(&mut self) -> Vec<Fault> {
+        std::mem::take(&mut self.faults)
+    }
+
+    /// How many muscle frames the guard has put back over the solver's
+    /// life, and the first fault (kept when [`Solver::take_faults`] drains
+    /// the recent ones).
+    pub fn fault_history(&self) -> (u64, Option<&Fault>) {
+        (self.fault_history.0, self.fault_history.1.as_ref())
     }
 
     /// Links targets if muscles or targets were added since the last step (the

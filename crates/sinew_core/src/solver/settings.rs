@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 /// How constraints are projected.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum SolverMethod {
     /// Gauss–Seidel, one muscle after another, in the canonical order. The
     /// reference: bit-identical run to run.
@@ -96,9 +97,23 @@ pub enum SweepSchedule {
     ByColor,
 }
 
+/// Longest frame time step [`SolverSettings::validate`] accepts. Units: s.
+pub const MAX_DT: f32 = 1.0;
+/// Most iterations per (sub)step [`SolverSettings::validate`] accepts.
+pub const MAX_ITERATIONS: u32 = 10_000;
+/// Most substeps per frame [`SolverSettings::validate`] accepts.
+pub const MAX_SUBSTEPS: u32 = 1_000;
+/// Most worker threads [`SolverSettings::validate`] accepts (each is an OS
+/// thread with its own stack: a typo such as `100000` would exhaust the
+/// machine).
+pub const MAX_THREADS: u32 = 1_024;
+/// Largest gravity magnitude [`SolverSettings::validate`] accepts
+/// (≈ 100 g). Units: m/s².
+pub const MAX_GRAVITY: f32 = 1_000.0;
+
 /// Global solver settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(deny_unknown_fields, default)]
 pub struct SolverSettings {
     /// Frame time step. Units: s. Default: `1/60`.
     pub dt: f32,
@@ -173,6 +188,12 @@ pub struct SolverSettings {
     /// Default: `8192` (P2 ran 3× and P3 1.2× slower on two threads than on
     /// one without it; P4 and T7 split).
     pub parallel_threshold: usize,
+    /// The run-time guard's speed limit: after each frame a muscle with a
+    /// particle faster than this (or a NaN or infinite one) is put back to
+    /// its last good frame and reported ([`crate::solver::Fault`]), while
+    /// the others run on. Muscles in a sprint move at a few m/s; a blow-up
+    /// reaches thousands. Units: m/s. Default: `100`.
+    pub max_speed: f32,
 }
 
 impl Default for SolverSettings {
@@ -194,6 +215,7 @@ impl Default for SolverSettings {
             threads: 0,
             schedule: SweepSchedule::Auto,
             parallel_threshold: 8192,
+            max_speed: 100.0,
         }
     }
 }
@@ -207,14 +229,13 @@ impl SolverSettings {
 
     /// Rejects NaN and out-of-range values.
     pub fn validate(&self) -> Result<(), BuildError> {
-        let bad = |parameter: &str, value: f32, reason: &str| BuildError::InvalidParameter {
-            muscle: "solver".into(),
-            parameter: parameter.into(),
+        let bad = |setting: &str, value: f32, reason: &str| BuildError::InvalidSetting {
+            setting: setting.into(),
             value,
             reason: reason.into(),
         };
-        if !(self.dt > 0.0 && self.dt.is_finite()) {
-            return Err(bad("dt", self.dt, "must be finite and > 0"));
+        if !(self.dt > 0.0 && self.dt <= MAX_DT) {
+            return Err(bad("dt", self.dt, "must be > 0 and at most 1 s"));
         }
         if let SolverMethod::Jacobi { omega } | SolverMethod::Hybrid { omega, .. } = self.method
             && !(1.0..=2.0).contains(&omega)
@@ -240,11 +261,34 @@ impl SolverSettings {
         if self.choose_interval == 0 {
             return Err(bad("choose_interval", 0.0, "must be ≥ 1"));
         }
-        if self.iterations == 0 || self.substeps == 0 {
-            return Err(bad("iterations/substeps", 0.0, "must be ≥ 1"));
+        for (setting, value, most) in [
+            ("iterations", self.iterations, MAX_ITERATIONS),
+            ("substeps", self.substeps, MAX_SUBSTEPS),
+            ("threads", self.threads, MAX_THREADS),
+        ] {
+            let least = u32::from(setting != "threads");
+            if !(least..=most).contains(&value) {
+                return Err(bad(
+                    setting,
+                    value as f32,
+                    &format!("must be in [{least}, {most}]"),
+                ));
+            }
         }
-        if !self.gravity.is_finite() {
-            return Err(bad("gravity", f32::NAN, "must be finite"));
+        if !(self.max_speed > 0.0 && self.max_speed.is_finite()) {
+            return Err(bad(
+                "max_speed",
+                self.max_speed,
+                "must be finite and > 0 (m/s)",
+            ));
+        }
+        let gravity = self.gravity.length();
+        if gravity.is_nan() || gravity > MAX_GRAVITY {
+            return Err(bad(
+                "gravity",
+                gravity,
+                "its magnitude must be finite and at most 1000 m/s² (≈ 100 g; Earth's is 9.81)",
+            ));
         }
         let listed = |k: &ConstraintKind| self.projection_order.iter().filter(|&o| o == k).count();
         let all = ConstraintKind::CANONICAL_ORDER;

@@ -45,11 +45,35 @@ impl Solver {
             self.end_substep(&sub);
             clock.lap(&mut timings.apply);
         }
-        clock.lap(&mut timings.write_back);
         self.time += frame.dt;
         self.frame += 1;
+        self.guard_muscles(frame);
+        clock.lap(&mut timings.write_back);
         timings.clock_reads = clock.reads();
         self.timings = timings;
+    }
+
+    /// The run-time guard over every muscle ([`super::guard()`]): a muscle
+    /// that blew up is put back to its last good frame and reported.
+    fn guard_muscles(&mut self, frame: &FrameParams) {
+        let unit = self.valid.length_unit;
+        let max_speed = self.valid.max_speed * unit;
+        for (i, (m, ws)) in self
+            .muscles
+            .iter_mut()
+            .zip(&mut self.workspaces)
+            .enumerate()
+        {
+            let order = frame.order.as_slice();
+            if let Some(fault) = super::guard(m, ws, self.frame, i, max_speed, unit, order) {
+                if fault.count == 1 {
+                    self.warnings.push(fault.to_string());
+                }
+                self.fault_history.0 += 1;
+                self.fault_history.1.get_or_insert_with(|| fault.clone());
+                self.faults.push(fault);
+            }
+        }
     }
 
     /// Validates the settings (keeping the last valid ones, with a warning,

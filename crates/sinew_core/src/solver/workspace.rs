@@ -57,6 +57,8 @@ pub struct MuscleWorkspace {
     pub(crate) jacobi: Option<(u64, JacobiState)>,
     /// A free muscle's momentum, recorded at the start of the substep.
     pub(crate) momentum: Option<RigidMomentum>,
+    /// The muscle's last good frame, for the run-time guard.
+    pub(crate) last_good: super::guard::LastGood,
 }
 
 impl MuscleWorkspace {

@@ -112,7 +112,7 @@ impl RigMap {
         ron::from_str(&text).map_err(|e: ron::error::SpannedError| CharacterError::Json {
             file: path.to_path_buf(),
             element: format!("line {}, column {}", e.span.start.line, e.span.start.col),
-            reason: e.code.to_string(),
+            reason: crate::ron_text::describe(&e.code),
         })
     }
 }

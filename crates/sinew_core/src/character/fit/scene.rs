@@ -36,14 +36,14 @@ impl FittedScene {
             if let Some(folder) = file.parent() {
                 std::fs::create_dir_all(folder).map_err(io(folder.to_path_buf()))?;
             }
-            std::fs::write(&file, text).map_err(io(file.clone()))?;
+            crate::atomic_file::write(&file, text).map_err(io(file.clone()))?;
         }
         let text = self.scene.to_ron().map_err(|e| CharacterError::Invalid {
             character: self.scene.name.clone(),
             element: "scene".into(),
             reason: e.to_string(),
         })?;
-        std::fs::write(path, text).map_err(io(path.to_path_buf()))
+        crate::atomic_file::write(path, text).map_err(io(path.to_path_buf()))
     }
 }
 
@@ -137,6 +137,7 @@ impl AnatomyFit {
                 spec.shape = Some(BoneShape::Mesh {
                     file: files[b].clone(),
                     scale: 1.0,
+                    orient_outward: false,
                 });
             }
         }
@@ -150,6 +151,7 @@ impl AnatomyFit {
                 path: file,
                 triangulate: false,
                 scale: 1.0,
+                orient_outward: false,
             };
             spec.params.hold_shape = true;
             spec.attachments = m

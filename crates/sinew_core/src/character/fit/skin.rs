@@ -108,6 +108,7 @@ impl FittedScene {
                 path: file,
                 triangulate: false,
                 scale: 1.0,
+                orient_outward: false,
             },
             roots: Roots::Vertices(Vec::new()),
             targets,
