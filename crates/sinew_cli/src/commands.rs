@@ -11,7 +11,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-type Result<T> = std::result::Result<T, Box<dyn Error>>;
+/// A command's result: any error, printed by `main`.
+pub type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
 /// Loads a scene file or a built-in; returns it with its base directory.
 pub fn load_scene(arg: &str) -> Result<(Scene, PathBuf)> {
@@ -255,7 +256,7 @@ pub fn bake(
     frames: Option<u32>,
     out: &Path,
     formats: &[BakeFormat],
-    replace: bool,
+    existing: ExistingFiles,
 ) -> Result<ExitCode> {
     let (scene, mut solver) = load_solver(arg)?;
     let frames = frames.unwrap_or(scene.frames.max(1));
@@ -264,11 +265,6 @@ pub fn bake(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {eta} left")
             .expect("valid template"),
     );
-    let existing = if replace {
-        ExistingFiles::Replace
-    } else {
-        ExistingFiles::Refuse
-    };
     let mut bake = Bake::start_in(&solver, out, formats, existing)?;
     for _ in 1..=frames {
         solver.step();
@@ -280,6 +276,12 @@ pub fn bake(
         eprintln!("warning: {w}");
     }
     let recorded = bake.frames();
+    if bake.resumed() > 0 {
+        println!(
+            "resumed: {} frames on disk checked against the simulation and kept",
+            bake.resumed()
+        );
+    }
     let files = bake.finish()?;
     let names: Vec<String> = formats.iter().map(|f| f.to_string()).collect();
     println!(

@@ -7,10 +7,11 @@ mod check;
 mod commands;
 mod import;
 mod render;
+mod soak;
 mod suite;
 
 use clap::{Parser, Subcommand};
-use sinew_core::bake::BakeFormat;
+use sinew_core::bake::{BakeFormat, ExistingFiles};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -54,8 +55,13 @@ enum Command {
         /// Delete an earlier bake's files in the output folder first (by
         /// default a folder holding bake files is refused, so two bakes
         /// never mix).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "resume")]
         replace: bool,
+        /// Continue an interrupted bake in the output folder: its OBJ frames
+        /// are kept (each checked as the simulation passes it again), the
+        /// rest is written.
+        #[arg(long)]
+        resume: bool,
     },
     /// Per-block ms/frame (median of runs) and ns per constraint-iteration.
     Bench {
@@ -89,6 +95,10 @@ enum Command {
     /// motion has stopped, rest (velocity, jiggle, deviation from the rest
     /// shape). Exits non-zero when a figure is out of its range.
     Check(check::CheckArgs),
+    /// A long run at rest (`--still`) or looping its motion: stays finite,
+    /// drifts less than a share of the scene's size, keeps its memory flat.
+    /// Exits non-zero when a figure fails.
+    Soak(soak::SoakArgs),
     /// Convert the MakeHuman base mesh and rig (a folder holding `3dobjs/`
     /// and `rigs/`, e.g. fetched by `scripts/fetch_makehuman.sh`) into a
     /// skinned glTF character (`.glb`) with an elbow-flexion clip.
@@ -152,7 +162,15 @@ fn main() -> ExitCode {
             out,
             format,
             replace,
-        } => commands::bake(&scene, frames, &out, &format, replace),
+            resume,
+        } => {
+            let existing = match (replace, resume) {
+                (true, _) => ExistingFiles::Replace,
+                (_, true) => ExistingFiles::Resume,
+                _ => ExistingFiles::Refuse,
+            };
+            commands::bake(&scene, frames, &out, &format, existing)
+        }
         Command::Bench {
             scene,
             frames,
@@ -184,6 +202,7 @@ fn main() -> ExitCode {
             &out,
         ),
         Command::Check(args) => check::run(&args),
+        Command::Soak(args) => soak::run(&args),
         Command::ImportMakehuman { dir, args } => character::run(&dir, &args),
         Command::Fit(args) => character::fit(&args),
         Command::ImportMjcf { input, args } => import::run(&input, &args),

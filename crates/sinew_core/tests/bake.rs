@@ -298,3 +298,61 @@ fn an_interrupted_bake_leaves_nothing_that_looks_complete_and_bakes_never_mix() 
     assert_eq!(names(&out), ["notes.txt", "oval.pc2"]);
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+#[test]
+fn an_interrupted_bake_resumes_to_the_bytes_of_an_uninterrupted_one() {
+    let formats = [BakeFormat::Obj, BakeFormat::Pc2];
+    let bake_frames = |out: &Path, frames: u32, existing: ExistingFiles| {
+        let mut solver = builtin("P3").unwrap().instantiate(Path::new(".")).unwrap();
+        let mut bake = Bake::start_in(&solver, out, &formats, existing)?;
+        for _ in 0..frames {
+            solver.step();
+            bake.record(&solver)?;
+        }
+        let resumed = bake.resumed();
+        bake.finish().map(|files| (files, resumed))
+    };
+    let whole = scratch("resume_whole");
+    let (files, _) = bake_frames(&whole, 6, ExistingFiles::Refuse).unwrap();
+    // Interrupted after frame 3 (its caches left as `.partial`) …
+    let resumed = scratch("resume_interrupted");
+    {
+        let mut solver = builtin("P3").unwrap().instantiate(Path::new(".")).unwrap();
+        let mut bake = Bake::start(&solver, &resumed, &formats).unwrap();
+        for _ in 0..3 {
+            solver.step();
+            bake.record(&solver).unwrap();
+        }
+    }
+    // … and resumed: frames 0–3 checked and kept, the rest written.
+    let (_, kept) = bake_frames(&resumed, 6, ExistingFiles::Resume).unwrap();
+    assert_eq!(kept, 4);
+    for file in &files {
+        let name = file.file_name().unwrap();
+        assert_eq!(
+            std::fs::read(file).unwrap(),
+            std::fs::read(resumed.join(name)).unwrap(),
+            "{name:?}"
+        );
+    }
+    assert!(!resumed.join("biceps.pc2.partial").exists());
+    // Resuming another scene's bake is refused at its first frame.
+    let mut other = builtin("P3").unwrap();
+    other.muscles[0].params.activation = 0.5;
+    let solver = other.instantiate(Path::new(".")).unwrap();
+    let mut bake = Bake::start_in(&solver, &resumed, &formats, ExistingFiles::Resume);
+    let error = match &mut bake {
+        Err(e) => e.to_string(),
+        Ok(_) => {
+            let mut solver = solver;
+            solver.step();
+            bake.unwrap().record(&solver).unwrap_err().to_string()
+        }
+    };
+    assert!(
+        error.contains("frame_000") && error.contains("another bake"),
+        "{error}"
+    );
+    std::fs::remove_dir_all(&whole).unwrap();
+    std::fs::remove_dir_all(&resumed).unwrap();
+}

@@ -50,7 +50,7 @@ pub enum BakeError {
     /// The output folder already holds files of a bake: a new bake would
     /// mix its frames with theirs.
     #[error(
-        "{folder}: already holds {count} bake file(s), e.g. {file}; choose an empty folder, or replace them (`sinew bake --replace`)"
+        "{folder}: already holds {count} bake file(s), e.g. {file}; choose an empty folder, replace them (`sinew bake --replace`) or continue an interrupted bake (`--resume`)"
     )]
     Existing {
         /// The output folder.
@@ -143,6 +143,9 @@ pub struct Bake {
     skeleton_values: Vec<f32>,
     skeleton_world: Vec<Affine3A>,
     files: Vec<PathBuf>,
+    /// Frames `0..resumed` are on disk from an interrupted bake: checked
+    /// against the simulation, not written again.
+    resumed: u32,
 }
 
 /// What [`Bake::start_in`] does with bake files already in its folder.
@@ -154,6 +157,13 @@ pub enum ExistingFiles {
     /// Delete them first (only bake files: frame OBJs, `.pc2`, the `.glb`
     /// and `.partial` leftovers; nothing else in the folder is touched).
     Replace,
+    /// Continue an interrupted bake: the OBJ frames already written
+    /// (`frame_0000.obj` on, without a gap) are kept, and as the simulation
+    /// passes them again (sinew is deterministic) each is checked against
+    /// the file — a difference means the folder holds another bake, an
+    /// error; the caches and the `.glb`, which span the whole run, are
+    /// written again.
+    Resume,
 }
 
 /// Whether `name` is a file a bake writes (or its leftover while writing).
@@ -220,8 +230,12 @@ impl Bake {
                     count: found.len(),
                 });
             }
-            (ExistingFiles::Replace, _) => {
+            (ExistingFiles::Replace | ExistingFiles::Resume, _) => {
                 for file in &found {
+                    let name = file.file_name().and_then(|n| n.to_str()).unwrap_or("");
+                    if existing == ExistingFiles::Resume && name.ends_with(".obj") {
+                        continue;
+                    }
                     std::fs::remove_file(file).map_err(|source| BakeError::Io {
                         file: file.clone(),
                         source,
@@ -272,7 +286,13 @@ impl Bake {
             skeleton_values: Vec::new(),
             skeleton_world: Vec::new(),
             files: Vec::new(),
+            resumed: 0,
         };
+        if existing == ExistingFiles::Resume && bake.formats.contains(&BakeFormat::Obj) {
+            bake.resumed = (0..)
+                .take_while(|&k| out.join(obj_file_name(k)).is_file())
+                .count() as u32;
+        }
         bake.files
             .extend(bake.caches.iter().map(|c| c.path().to_path_buf()));
         bake.record(solver)?;
@@ -293,7 +313,27 @@ impl Bake {
         }
         if self.formats.contains(&BakeFormat::Obj) {
             let file = self.out.join(obj_file_name(self.frame));
-            write_obj(solver, &file)?;
+            let text = obj_text(solver);
+            if self.frame < self.resumed {
+                let io = |source| BakeError::Io {
+                    file: file.clone(),
+                    source,
+                };
+                if std::fs::read(&file).map_err(io)? != text.as_bytes() {
+                    return Err(BakeError::Invalid {
+                        file,
+                        element: format!("frame {}", self.frame),
+                        reason: "differs from this scene's frame: the folder holds another bake \
+                                 (bake elsewhere, or --replace it)"
+                            .into(),
+                    });
+                }
+            } else {
+                crate::atomic_file::write(&file, text).map_err(|source| BakeError::Io {
+                    file: file.clone(),
+                    source,
+                })?;
+            }
             self.files.push(file);
         }
         for (cache, m) in self.caches.iter_mut().zip(solver.muscles()) {
@@ -321,6 +361,12 @@ impl Bake {
         self.frame
     }
 
+    /// OBJ frames an interrupted bake had written, kept and checked
+    /// ([`ExistingFiles::Resume`]; 0 otherwise).
+    pub fn resumed(&self) -> u32 {
+        self.resumed
+    }
+
     /// Completes the caches and writes the `.glb`; returns every file written.
     pub fn finish(self) -> Result<Vec<PathBuf>, BakeError> {
         for cache in self.caches {
@@ -345,13 +391,18 @@ impl Bake {
     }
 }
 
-/// Writes every muscle's surface to one OBJ file (one object per muscle).
-pub fn write_obj(solver: &Solver, path: &Path) -> Result<(), BakeError> {
+/// Every muscle's surface as OBJ text (one object per muscle).
+fn obj_text(solver: &Solver) -> String {
     let mut obj = ObjObjects::default();
     for m in solver.muscles() {
         obj.push(&m.name, m.surface_positions(), m.mesh.polygons(), None);
     }
-    crate::atomic_file::write(path, obj.into_text()).map_err(|source| BakeError::Io {
+    obj.into_text()
+}
+
+/// Writes every muscle's surface to one OBJ file (one object per muscle).
+pub fn write_obj(solver: &Solver, path: &Path) -> Result<(), BakeError> {
+    crate::atomic_file::write(path, obj_text(solver)).map_err(|source| BakeError::Io {
         file: path.to_path_buf(),
         source,
     })

@@ -446,6 +446,14 @@ impl Solver {
         self.time
     }
 
+    /// Moves the clock to `time` (s): from the next step bone tracks, joint
+    /// motion and activation curves are sampled from there — a host looping
+    /// an animation sets it back to its start. Velocities and the frame
+    /// count are kept.
+    pub fn set_time(&mut self, time: f32) {
+        self.time = time;
+    }
+
     /// Frames stepped so far.
     pub fn frame(&self) -> u64 {
         self.frame
