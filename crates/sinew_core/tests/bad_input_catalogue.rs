@@ -99,6 +99,21 @@ fn curve(keys: &str) -> String {
     format!("activation: Some(Curve(keys: [{keys}])),")
 }
 
+/// A linear sensor `s` on `bone` at `point`.
+fn sensor(point: &str, bone: &str) -> String {
+    format!("sensors: [(name: \"s\", kind: Linear(point: (bone: \"{bone}\", point: {point})))],")
+}
+
+/// The muscle driven by one activation layer.
+fn drive(layer: &str) -> String {
+    format!("drive: [{layer}],")
+}
+
+/// A skeleton of one body `b` with `joints`, and `rest` (motion, couplings).
+fn skeleton(joints: &str, rest: &str) -> String {
+    format!("skeleton: Some(Skeleton(bodies: [(name: \"b\", {joints})], {rest})),")
+}
+
 /// P1 with `projection_order: [order]`.
 fn with_order(order: &str) -> String {
     let text = p1();
@@ -203,6 +218,20 @@ fn scene_cases() -> Vec<Case> {
         scene("skeleton body its own parent", &[("skeleton: None,", "skeleton: Some(Skeleton(bodies: [(name: \"a\", parent: Some(\"a\"))])),")], &["skeleton body 0 'a'", "parent 'a'"]),
         scene("skeleton body parent listed later", &[("skeleton: None,", "skeleton: Some(Skeleton(bodies: [(name: \"a\", parent: Some(\"b\")), (name: \"b\", parent: Some(\"a\"))])),")], &["skeleton body 0 'a'", "parent 'b'"]),
         scene("bone following a missing body", &[("body: None,", "body: Some(\"pelvis\"),")], &["bone 'ground'", "unknown skeleton body 'pelvis'"]),
+        scene("sensor at a NaN point", &[("sensors: [],", &sensor("(NaN, 0, 0)", "ground"))], &["sensor 0 's'", "non-finite point"]),
+        scene("sensor on a missing bone", &[("sensors: [],", &sensor("(0, 0, 0)", "radius"))], &["unknown bone 'radius'"]),
+        scene("drive reading a missing sensor", &[("drive: [],", &drive("Add(Sensor((sensor: \"s\")))"))], &["activation layer 0", "unknown sensor 's'"]),
+        scene("drive with a NaN constant", &[("drive: [],", &drive("Add(Constant(NaN))"))], &["activation layer 0", "constant NaN"]),
+        scene("drive curve out of order", &[("drive: [],", &drive("Add(Curve((keys: [(1, 0), (0, 1)])))"))], &["activation layer 0", "curve", "sorted"]),
+        scene("drive clamp that is empty", &[("drive: [],", &drive("Clamp(min: 1, max: 0)"))], &["activation layer 0", "is empty"]),
+        scene("trigger with a negative attack", &[("sensors: [],", &sensor("(0, 0, 0)", "ground")), ("drive: [],", &drive("Add(Sensor((sensor: \"s\", trigger: (attack: -1))))"))], &["activation layer 0", "attack"]),
+        scene("trigger gate closing above opening", &[("sensors: [],", &sensor("(0, 0, 0)", "ground")), ("drive: [],", &drive("Add(Sensor((sensor: \"s\", trigger: (threshold_on: 0.1, threshold_off: 0.5))))"))], &["threshold_off 0.5 > threshold_on 0.1"]),
+        scene("remap ramp of repeated keys", &[("sensors: [],", &sensor("(0, 0, 0)", "ground")), ("drive: [],", &drive("Add(Sensor((sensor: \"s\", remap: (ramp: Some((keys: [(0, 0), (0, 1)]))))))"))], &["remap ramp", "without repeats"]),
+        scene("joint with a zero axis", &[("skeleton: None,", &skeleton("joints: [(name: \"j\", kind: Hinge, axis: (0, 0, 0))]", ""))], &["joint 'j'", "axis has zero length"]),
+        scene("joint with a reversed range", &[("skeleton: None,", &skeleton("joints: [(name: \"j\", kind: Hinge, axis: (0, 0, 1), range: Some((1, -1)))]", ""))], &["joint 'j'", "range (1, -1) is empty"]),
+        scene("motion of a missing joint", &[("skeleton: None,", &skeleton("", "motion: [(joint: \"knee\", curve: (keys: [(0, 0)]))]"))], &["skeleton motion 0", "unknown joint 'knee'"]),
+        scene("motion keys out of order", &[("skeleton: None,", &skeleton("joints: [(name: \"j\", kind: Hinge, axis: (0, 0, 1))]", "motion: [(joint: \"j\", curve: (keys: [(1, 0), (0, 1)]))]"))], &["skeleton motion 0 (joint 'j')", "sorted"]),
+        scene("coupling with a NaN coefficient", &[("skeleton: None,", &skeleton("joints: [(name: \"j\", kind: Hinge, axis: (0, 0, 1))]", "couplings: [(joint: \"j\", polynomial: (NaN, 0, 0, 0, 0))]"))], &["skeleton coupling 0", "non-finite"]),
         file("empty scene file", Reader::Scene, "ron", "", &["1:1", "Scene"]),
         file("truncated scene", Reader::Scene, "ron", p1()[..900].to_string(), &["truncated scene"]),
         file("not RON at all", Reader::Scene, "ron", "{\"name\": \"json\"}", &["1:1"]),

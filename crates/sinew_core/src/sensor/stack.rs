@@ -85,7 +85,11 @@ impl ActivationStack {
                 Ok(match input {
                     LayerInput::Constant(c) if c.is_finite() => CompiledInput::Constant(*c),
                     LayerInput::Constant(c) => return Err(invalid(format!("constant {c}"))),
-                    LayerInput::Curve(c) => CompiledInput::Curve(c.clone()),
+                    LayerInput::Curve(c) => {
+                        c.validate(f32::MIN..=f32::MAX)
+                            .map_err(|r| invalid(format!("curve: {r}")))?;
+                        CompiledInput::Curve(c.clone())
+                    }
                     LayerInput::Sensor(s) => {
                         let sensor = sensor_index(&s.sensor).ok_or_else(|| {
                             SceneError::UnknownReference {
@@ -102,6 +106,10 @@ impl ActivationStack {
                             .all(|v| v.is_finite());
                         if !finite {
                             return Err(invalid("non-finite trigger or remap parameter".into()));
+                        }
+                        if let Some(ramp) = &s.remap.ramp {
+                            ramp.validate(f32::MIN..=f32::MAX)
+                                .map_err(|r| invalid(format!("remap ramp: {r}")))?;
                         }
                         if t.threshold_off > t.threshold_on {
                             return Err(invalid(format!(
