@@ -83,9 +83,12 @@ impl MeshGenerator {
             face: 0,
             reason: format!("generator parameters: {reason}"),
         };
-        if let Some(reason) = self.out_of_bounds() {
-            return Err(bad(&reason));
-        }
+        let checked = |points: &[Vec3], lengths: &[f32], vertices: u64| match out_of_bounds(
+            points, lengths, vertices,
+        ) {
+            Some(reason) => Err(bad(&reason)),
+            None => Ok(()),
+        };
         let (positions, polygons) = match *self {
             Self::Ellipsoid {
                 center,
@@ -93,6 +96,8 @@ impl MeshGenerator {
                 segments,
                 stacks,
             } => {
+                let vertices = u64::from(segments) * u64::from(stacks.saturating_sub(1)) + 2;
+                checked(&[center, radii], &[], vertices)?;
                 if segments < 3 || stacks < 2 || radii.min_element() <= 0.0 {
                     return Err(bad("need segments ≥ 3, stacks ≥ 2, radii > 0"));
                 }
@@ -103,6 +108,8 @@ impl MeshGenerator {
                 size,
                 divisions,
             } => {
+                let [a, b, c] = divisions.map(|d| u64::from(d) + 1);
+                checked(&[center, size], &[], 2 * (a * b + b * c + c * a))?;
                 if divisions.contains(&0) || size.min_element() <= 0.0 {
                     return Err(bad("need divisions ≥ 1 and size > 0"));
                 }
@@ -116,6 +123,8 @@ impl MeshGenerator {
                 around,
                 rings,
             } => {
+                let vertices = u64::from(around) * u64::from(rings) + 2;
+                checked(&[start, end], &[belly_radius, tendon_radius], vertices)?;
                 if around < 3 || rings < 1 || belly_radius <= 0.0 || tendon_radius <= 0.0 {
                     return Err(bad("need around ≥ 3, rings ≥ 1, radii > 0"));
                 }
@@ -135,6 +144,12 @@ impl MeshGenerator {
                 belly_rings,
                 head_rings,
             } => {
+                let rings = u64::from(belly_rings) + 2 * u64::from(head_rings);
+                checked(
+                    &[end, junction, head_a, head_b],
+                    &[belly_radius, head_radius],
+                    2 * u64::from(half_around) * rings + 3,
+                )?;
                 if half_around < 2 || belly_rings < 1 || head_rings < 1 {
                     return Err(bad("need half_around ≥ 2, rings ≥ 1"));
                 }
@@ -158,78 +173,18 @@ impl MeshGenerator {
     }
 }
 
-impl MeshGenerator {
-    /// Why the parameters cannot make a mesh of sane size: a coordinate or
-    /// radius that is not finite, or more than [`MAX_GENERATED_VERTICES`]
-    /// vertices (counted in 64 bits, so no count overflows).
-    fn out_of_bounds(&self) -> Option<String> {
-        let (floats, vertices): (Vec<f32>, u64) = match *self {
-            Self::Ellipsoid {
-                center,
-                radii,
-                segments,
-                stacks,
-            } => (
-                [center.to_array(), radii.to_array()].concat(),
-                u64::from(segments) * u64::from(stacks.saturating_sub(1)) + 2,
-            ),
-            Self::Box {
-                center,
-                size,
-                divisions: [a, b, c],
-            } => {
-                let [a, b, c] = [a, b, c].map(|d| u64::from(d) + 1);
-                (
-                    [center.to_array(), size.to_array()].concat(),
-                    2 * (a * b + b * c + c * a),
-                )
-            }
-            Self::Fusiform {
-                start,
-                end,
-                belly_radius,
-                tendon_radius,
-                around,
-                rings,
-            } => (
-                [
-                    start.to_array().as_slice(),
-                    &end.to_array(),
-                    &[belly_radius, tendon_radius],
-                ]
-                .concat(),
-                u64::from(around) * u64::from(rings) + 2,
-            ),
-            Self::Bifurcated {
-                end,
-                junction,
-                head_a,
-                head_b,
-                belly_radius,
-                head_radius,
-                half_around,
-                belly_rings,
-                head_rings,
-            } => (
-                [
-                    end.to_array().as_slice(),
-                    &junction.to_array(),
-                    &head_a.to_array(),
-                    &head_b.to_array(),
-                    &[belly_radius, head_radius],
-                ]
-                .concat(),
-                2 * u64::from(half_around) * (u64::from(belly_rings) + 2 * u64::from(head_rings))
-                    + 3,
-            ),
-        };
-        if let Some(x) = floats.iter().find(|x| !x.is_finite()) {
-            return Some(format!("a coordinate or radius is {x}, expected finite"));
-        }
-        (vertices > MAX_GENERATED_VERTICES).then(|| {
-            format!("about {vertices} vertices, more than the {MAX_GENERATED_VERTICES} a generator makes")
-        })
+/// Why a generator's parameters cannot make a mesh of sane size: a
+/// coordinate or length that is not finite, or more than
+/// [`MAX_GENERATED_VERTICES`] vertices (`vertices` is counted in 64 bits, so
+/// no count overflows).
+fn out_of_bounds(points: &[Vec3], lengths: &[f32], vertices: u64) -> Option<String> {
+    let floats = points.iter().flat_map(|p| p.to_array()).chain(lengths.iter().copied());
+    if let Some(x) = floats.into_iter().find(|x| !x.is_finite()) {
+        return Some(format!("a coordinate or radius is {x}, expected finite"));
     }
+    (vertices > MAX_GENERATED_VERTICES).then(|| {
+        format!("about {vertices} vertices, more than the {MAX_GENERATED_VERTICES} a generator makes")
+    })
 }
 
 /// Most vertices a [`MeshGenerator`] makes (a typo such as `segments:
