@@ -90,11 +90,24 @@ pub fn run(args: &SoakArgs) -> Result<ExitCode> {
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
     );
     let size = (hi - lo).length();
-    let drift = at_reference
+    let (worst, drift) = at_reference
         .iter()
         .zip(&end)
         .map(|(a, b)| a.distance(*b))
-        .fold(0.0f32, f32::max);
+        .enumerate()
+        .fold(
+            (0, 0.0f32),
+            |best, (i, d)| if d > best.1 { (i, d) } else { best },
+        );
+    // The muscle and vertex that drifted most.
+    let (mut muscle, mut vertex) = (0, worst);
+    while let Some(m) = solver.muscles().get(muscle)
+        && vertex >= m.surface_positions().len()
+    {
+        vertex -= m.surface_positions().len();
+        muscle += 1;
+    }
+    let worst_name = solver.muscles().get(muscle).map_or("", |m| m.name.as_str());
     let relative = drift / size;
     let finite = end.iter().all(|p| p.is_finite());
     let (faults, first) = solver.fault_history();
@@ -131,7 +144,7 @@ pub fn run(args: &SoakArgs) -> Result<ExitCode> {
     let drift_ok = relative <= args.max_drift;
     writeln!(
         out,
-        "drift       {}  {:.3e} m from frame {reference_frame} to {} = {relative:.2e} of the scene's size ({size:.3} m; limit {:.0e}{})",
+        "drift       {}  {:.3e} m ({worst_name} vertex {vertex}) from frame {reference_frame} to {} = {relative:.2e} of the scene's size ({size:.3} m; limit {:.0e}{})",
         match (args.still, drift_ok) {
             (false, _) => "-   ",
             (true, true) => "ok  ",

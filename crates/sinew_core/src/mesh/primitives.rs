@@ -178,12 +178,17 @@ impl MeshGenerator {
 /// [`MAX_GENERATED_VERTICES`] vertices (`vertices` is counted in 64 bits, so
 /// no count overflows).
 fn out_of_bounds(points: &[Vec3], lengths: &[f32], vertices: u64) -> Option<String> {
-    let floats = points.iter().flat_map(|p| p.to_array()).chain(lengths.iter().copied());
+    let floats = points
+        .iter()
+        .flat_map(|p| p.to_array())
+        .chain(lengths.iter().copied());
     if let Some(x) = floats.into_iter().find(|x| !x.is_finite()) {
         return Some(format!("a coordinate or radius is {x}, expected finite"));
     }
     (vertices > MAX_GENERATED_VERTICES).then(|| {
-        format!("about {vertices} vertices, more than the {MAX_GENERATED_VERTICES} a generator makes")
+        format!(
+            "about {vertices} vertices, more than the {MAX_GENERATED_VERTICES} a generator makes"
+        )
     })
 }
 
