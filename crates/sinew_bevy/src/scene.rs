@@ -43,7 +43,7 @@ impl SinewScene {
     /// Reads and builds a scene file.
     pub fn load(path: &Path) -> Result<Self, sinew_core::SceneError> {
         let scene = Scene::load(path)?;
-        Self::build(scene, path.parent().unwrap_or(Path::new(".")))
+        Self::build(scene, path.parent().unwrap_or(Path::new("."))).map_err(|e| e.in_file(path))
     }
 }
 
@@ -122,7 +122,7 @@ impl AssetLoader for SinewSceneLoader {
         let file = self.root.join(&asset_path);
         let scene = Scene::from_ron(&text, &file)?;
         let base = file.parent().map(Path::to_path_buf).unwrap_or_default();
-        Ok(SinewScene::build(scene, &base)?)
+        Ok(SinewScene::build(scene, &base).map_err(|e| e.in_file(&file))?)
     }
 
     fn extensions(&self) -> &[&str] {
