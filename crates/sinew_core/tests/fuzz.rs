@@ -2,8 +2,9 @@
 //! recipes, MJCF — and of the solver on random valid-but-extreme settings.
 //! Each harness mutates valid seed files (bytes flipped, inserted, deleted,
 //! repeated; numbers replaced by extreme values) and hands them to the
-//! reader; any panic is a finding, saved with its input. Readers must answer
-//! with a typed error or a result, never panic.
+//! reader; any panic, and any input taking over 10 s, is a finding, saved
+//! with its input. Readers must answer with a typed error or a result,
+//! never panic.
 //!
 //! Each harness runs `SINEW_FUZZ_SECONDS` seconds (default 2, what the test
 //! suite and CI spend). A long run, one reader at a time:
@@ -23,6 +24,10 @@ use sinew_core::{ColorScope, SolverMethod};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 use std::time::{Duration, Instant};
+
+/// An input that takes longer than this to read (and build and step) is a
+/// finding: a user would take it for a hang.
+const SLOW: Duration = Duration::from_secs(10);
 
 /// xorshift64*: a small, seeded generator (the runs are reproducible).
 struct Rng(u64);
@@ -161,7 +166,17 @@ fn fuzz(
         let input = mutate(&mut rng, parent);
         std::fs::write(&path, &input).unwrap();
         executions += 1;
-        if let Err(panic) = catch_unwind(AssertUnwindSafe(|| read(&path))) {
+        let started = Instant::now();
+        let outcome = catch_unwind(AssertUnwindSafe(|| read(&path)));
+        let took = started.elapsed();
+        if took > SLOW {
+            // Not a crash, but a user would take it for a hang.
+            std::fs::create_dir_all(&findings_dir).unwrap();
+            let saved = findings_dir.join(format!("{name}_slow_{}.{extension}", findings.len()));
+            std::fs::write(&saved, &input).unwrap();
+            findings.push(format!("{name}: took {took:.1?} ({})", saved.display()));
+        }
+        if let Err(panic) = outcome {
             let message = panic
                 .downcast_ref::<String>()
                 .cloned()

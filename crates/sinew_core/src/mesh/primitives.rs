@@ -194,7 +194,7 @@ fn out_of_bounds(points: &[Vec3], lengths: &[f32], vertices: u64) -> Option<Stri
 
 /// Most vertices a [`MeshGenerator`] makes (a typo such as `segments:
 /// 100000` would otherwise allocate gigabytes).
-pub const MAX_GENERATED_VERTICES: u64 = 1_000_000;
+pub const MAX_GENERATED_VERTICES: u64 = 200_000;
 
 /// Flips every polygon when the signed volume is negative.
 pub(crate) fn oriented_outward(positions: &[Vec3], mut polygons: Vec<Vec<u32>>) -> Vec<Vec<u32>> {
