@@ -199,12 +199,18 @@ fn fuzz(
     (executions, findings)
 }
 
+/// Held by the harness that has the panic hook silenced (the hook is the
+/// process's: harnesses running on parallel test threads take turns).
+static SILENCED: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Runs a harness with panic messages silenced; fails on any finding.
 fn run(name: &str, extension: &str, seeds: &[Vec<u8>], read: impl Fn(&Path)) {
+    let turn = SILENCED.lock().unwrap_or_else(|e| e.into_inner());
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
     let (executions, findings) = fuzz(name, extension, seeds, read);
     std::panic::set_hook(hook);
+    drop(turn);
     assert!(executions > 0);
     assert!(findings.is_empty(), "{}", findings.join("\n"));
 }

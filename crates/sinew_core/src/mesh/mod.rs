@@ -450,7 +450,14 @@ pub fn weld_positions(positions: &[Vec3], tolerance: f32) -> (Vec<Vec3>, Vec<u32
         'search: for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    if let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
+                    // Saturating: a zero tolerance (a single point's box) or
+                    // far-out coordinates put cells at the ends of i64.
+                    let key = [
+                        c[0].saturating_add(dx),
+                        c[1].saturating_add(dy),
+                        c[2].saturating_add(dz),
+                    ];
+                    if let Some(list) = grid.get(&key) {
                         for &u in list {
                             if unique[u as usize].distance(p) <= tol {
                                 found = Some(u);
