@@ -67,6 +67,7 @@ pub fn run(args: &SoakArgs) -> Result<ExitCode> {
     }
     let period = scene.motion_end() + 2.0;
     let mut solver = scene.instantiate(&base)?;
+    let reference_frame = args.reference.min(args.frames - 1);
     let start = Instant::now();
     let mut reference = None;
     for frame in 1..=args.frames {
@@ -74,7 +75,7 @@ pub fn run(args: &SoakArgs) -> Result<ExitCode> {
         if args.loop_motion && solver.time() >= period {
             solver.set_time(solver.time() - period);
         }
-        if frame == args.reference.min(args.frames - 1) {
+        if frame == reference_frame {
             reference = Some((surface(&solver), memory_kib()));
         }
     }
@@ -112,7 +113,6 @@ pub fn run(args: &SoakArgs) -> Result<ExitCode> {
     let finite = end.iter().all(|p| p.is_finite());
     let (faults, first) = solver.fault_history();
     let mut out = String::new();
-    let reference_frame = args.reference.min(args.frames - 1);
     writeln!(
         out,
         "scene {}: {} frames ({:.0} s simulated{}) in {seconds:.1} s",

@@ -306,17 +306,18 @@ impl TargetSurface {
     /// muscles sliding on it keep its last finite surface, and the run-time
     /// guard ([`crate::solver::guard()`]) puts the muscle back.
     pub fn publish(&mut self, positions: &[Vec3]) {
-        if !positions.iter().all(|p| p.is_finite()) {
+        // One pass finds the slack and, with a NaN-propagating maximum, a
+        // non-finite position (its distance is NaN or infinite).
+        let moved = positions
+            .iter()
+            .zip(&self.fitted)
+            .map(|(p, f)| p.distance_squared(*f))
+            .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m });
+        if !moved.is_finite() {
             return;
         }
         self.positions.clear();
         self.positions.extend_from_slice(positions);
-        let moved = self
-            .positions
-            .iter()
-            .zip(&self.fitted)
-            .map(|(p, f)| p.distance_squared(*f))
-            .fold(0.0f32, f32::max);
         self.slack = moved.sqrt();
     }
 
