@@ -1,7 +1,7 @@
 //! `sinew bench`: per-block ms/frame, medians of several runs.
 
 use crate::commands::{load_scene, truncate};
-use sinew_core::glam::Vec3;
+use crate::reference_kernel::reference_ns;
 use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings, SweepSchedule};
 use std::error::Error;
 use std::process::ExitCode;
@@ -22,11 +22,9 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 
 /// What one run measured.
 struct RunResult {
-    /// Per-block ms/frame.
-    blocks: [f64; 7],
-    /// Wall ms/frame.
-    wall: f64,
-    /// Constraints in the scene.
+    /// The frames' times and work.
+    times: FrameTimes,
+    /// Constraints in the scene, switched-off ones included.
     constraints: usize,
     /// Global iterations.
     iterations: usize,
@@ -36,6 +34,29 @@ struct RunResult {
     threads: u32,
     /// Projection method.
     method: SolverMethod,
+}
+
+/// What `sinew bench` runs.
+#[derive(Clone, Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Scene file or built-in name.
+    pub scene: String,
+    /// Frames per run.
+    #[arg(long, default_value_t = 120, value_parser = clap::value_parser!(u32).range(1..))]
+    pub frames: u32,
+    /// Measured runs (the median is reported).
+    #[arg(long, default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..))]
+    pub runs: u32,
+    /// First timed frame: the frames before it are stepped untimed (a walk
+    /// window of T7: `--from 120 --frames 120`). Default 1: after one
+    /// warm-up frame.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub from: u32,
+    #[command(flatten)]
+    pub overrides: Overrides,
+    /// Also time with block timers off, to show their overhead.
+    #[arg(long)]
+    pub timer_overhead: bool,
 }
 
 /// A projection method named on the command line.
@@ -130,20 +151,61 @@ impl Overrides {
     }
 }
 
-/// Steps `frames` frames: per-block ms/frame and wall ms/frame.
-pub fn time_frames(solver: &mut Solver, frames: u32) -> ([f64; 7], f64) {
+/// What stepping a run of frames measured.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameTimes {
+    /// Per-block ms/frame, named as [`StepTimings::NAMES`].
+    pub blocks: [f64; 7],
+    /// Wall ms/frame (the steps alone).
+    pub wall: f64,
+    /// Active constraints (not switched off: a Sliding out of every
+    /// target's reach, a Soft or Hard of weight 0), mean over the frames.
+    pub active: f64,
+    /// Constraint-iterations the frames projected, mean per frame: each
+    /// muscle's active constraints × its iterations × the substeps.
+    pub work: f64,
+}
+
+/// Constraints of `solver` that act now, and the constraint-iterations a
+/// frame of them is.
+pub fn active_work(solver: &Solver) -> (usize, f64) {
+    let s = &solver.settings;
+    solver.muscles().iter().fold((0, 0.0), |(n, w), m| {
+        let active = m.constraints.active_counts().total();
+        let iterations = m.params.iterations.unwrap_or(s.iterations);
+        (
+            n + active,
+            w + (active as u64 * iterations as u64 * s.substeps as u64) as f64,
+        )
+    })
+}
+
+/// Steps `frames` frames, timing the steps alone (active constraints are
+/// counted between them).
+pub fn time_frames(solver: &mut Solver, frames: u32) -> FrameTimes {
     let frames = frames.max(1);
     let mut blocks = [Duration::ZERO; 7];
-    let start = Instant::now();
+    let mut wall = Duration::ZERO;
+    let (mut active, mut work) = (0.0, 0.0);
     for _ in 0..frames {
+        let start = Instant::now();
         solver.step();
+        wall += start.elapsed();
         let t: &StepTimings = solver.timings();
         for (b, d) in blocks.iter_mut().zip(t.as_array()) {
             *b += d;
         }
+        let (n, w) = active_work(solver);
+        active += n as f64;
+        work += w;
     }
-    let wall = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
-    (blocks.map(|d| d.as_secs_f64() * 1e3 / frames as f64), wall)
+    let per_frame = |d: Duration| d.as_secs_f64() * 1e3 / frames as f64;
+    FrameTimes {
+        blocks: blocks.map(per_frame),
+        wall: per_frame(wall),
+        active: active / frames as f64,
+        work: work / frames as f64,
+    }
 }
 
 /// Which bodies of the scene a run steps.
@@ -166,15 +228,9 @@ fn surface_layers(scene: &sinew_core::scene::Scene) -> Vec<String> {
         .collect()
 }
 
-/// One run: per-block ms/frame and wall ms/frame.
-fn run_once(
-    scene: &str,
-    frames: u32,
-    overrides: Overrides,
-    timers: bool,
-    bodies: Bodies,
-) -> Result<RunResult, Box<dyn Error>> {
-    let (mut spec, base) = load_scene(scene)?;
+/// One run: steps to `args.from` untimed, then times `args.frames` frames.
+fn run_once(args: &BenchArgs, timers: bool, bodies: Bodies) -> Result<RunResult, Box<dyn Error>> {
+    let (mut spec, base) = load_scene(&args.scene)?;
     if bodies == Bodies::WithoutLayers {
         let layers = surface_layers(&spec);
         spec.muscles.retain(|m| !layers.contains(&m.name));
@@ -183,15 +239,16 @@ fn run_once(
         }
     }
     let mut solver = spec.instantiate(&base)?;
-    overrides.apply(&mut solver)?;
+    args.overrides.apply(&mut solver)?;
     solver.settings.timers = timers;
-    // Warm-up frame links targets and faults pages in.
-    solver.step();
-    let (per_frame, wall) = time_frames(&mut solver, frames);
+    // At least one warm-up frame: it links targets and faults pages in.
+    for _ in 0..args.from.max(1) {
+        solver.step();
+    }
+    let times = time_frames(&mut solver, args.frames);
     let constraints = solver.muscles().iter().map(|m| m.counts().total()).sum();
     Ok(RunResult {
-        blocks: per_frame,
-        wall,
+        times,
         constraints,
         iterations: solver.settings.iterations as usize,
         clock_reads: solver.timings().clock_reads,
@@ -215,85 +272,49 @@ fn clock_read_ns() -> f64 {
     median(batches)
 }
 
-/// A bare XPBD distance loop over `n` constraints on a chain: the practical
-/// lower bound per constraint-iteration on this machine. Returns ns.
-pub fn bare_kernel_ns(n: usize, iterations: usize) -> f64 {
-    let particles = n + 1;
-    let mut p: Vec<Vec3> = (0..particles)
-        .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
-        .collect();
-    let w = vec![1.0f32; particles];
-    let a: Vec<u32> = (0..n as u32).collect();
-    let b: Vec<u32> = (1..=n as u32).collect();
-    let rest = vec![0.009f32; n];
-    let mut lambda = vec![0.0f32; n];
-    let alpha = 1e-5f32 * 3600.0;
-    let reps = (2_000_000 / (n * iterations).max(1)).max(3);
-    let mut samples = Vec::new();
-    for _ in 0..reps {
-        lambda.fill(0.0);
-        let t = Instant::now();
-        for _ in 0..iterations {
-            for i in 0..n {
-                let (ia, ib) = (a[i] as usize, b[i] as usize);
-                let d = p[ia] - p[ib];
-                let len = d.length();
-                if len < 1e-9 {
-                    continue;
-                }
-                let dl = (-(len - rest[i]) - alpha * lambda[i]) / (w[ia] + w[ib] + alpha);
-                lambda[i] += dl;
-                let g = d * (dl / len);
-                p[ia] += w[ia] * g;
-                p[ib] -= w[ib] * g;
-            }
-        }
-        samples.push(t.elapsed().as_secs_f64() * 1e9 / (n * iterations) as f64);
-    }
-    std::hint::black_box(&p);
-    median(samples)
-}
-
-pub fn run(
-    scene: &str,
-    frames: u32,
-    runs: u32,
-    overrides: Overrides,
-    timer_overhead: bool,
-) -> Result<ExitCode, Box<dyn Error>> {
-    let runs = runs.max(1);
+/// Runs `sinew bench`: the median of `args.runs` runs, per block, next to
+/// the [reference sweep](crate::reference_kernel) over the same active
+/// constraints on the same threads.
+pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
+    let runs = args.runs;
     let mut blocks: Vec<Vec<f64>> = vec![Vec::new(); 7];
-    let mut walls = Vec::new();
+    let (mut walls, mut actives, mut works) = (Vec::new(), Vec::new(), Vec::new());
     let mut untimed = Vec::new();
     let (mut constraints, mut iters, mut reads_per_frame, mut threads) = (0, 0, 0, 1);
     let mut method = SolverMethod::Sequential;
     // A scene with surface layers is also run without them, interleaved:
     // the difference is the layers' own line.
-    let layers = surface_layers(&load_scene(scene)?.0);
+    let layers = surface_layers(&load_scene(&args.scene)?.0);
     let mut muscles_only: Vec<Vec<f64>> = vec![Vec::new(); 8];
     for _ in 0..runs {
-        let r = run_once(scene, frames, overrides, true, Bodies::All)?;
-        for (k, v) in r.blocks.iter().enumerate() {
+        let r = run_once(args, true, Bodies::All)?;
+        for (k, v) in r.times.blocks.iter().enumerate() {
             blocks[k].push(*v);
         }
-        walls.push(r.wall);
+        walls.push(r.times.wall);
+        actives.push(r.times.active);
+        works.push(r.times.work);
         (constraints, iters, reads_per_frame, threads) =
             (r.constraints, r.iterations, r.clock_reads, r.threads);
         method = r.method;
-        if timer_overhead {
-            untimed.push(run_once(scene, frames, overrides, false, Bodies::All)?.wall);
+        if args.timer_overhead {
+            untimed.push(run_once(args, false, Bodies::All)?.times.wall);
         }
         if !layers.is_empty() {
-            let r = run_once(scene, frames, overrides, true, Bodies::WithoutLayers)?;
-            for (k, v) in r.blocks.iter().chain([&r.wall]).enumerate() {
+            let r = run_once(args, true, Bodies::WithoutLayers)?;
+            for (k, v) in r.times.blocks.iter().chain([&r.times.wall]).enumerate() {
                 muscles_only[k].push(*v);
             }
         }
     }
     let wall = median(walls);
+    let (active, work) = (median(actives), median(works));
+    let (scene, frames, from) = (&args.scene, args.frames, args.from);
     println!(
-        "scene {scene}: {constraints} constraints, {iters} iterations, {:?}, {frames} frames × {runs} runs (medians), {}",
+        "scene {scene}: {constraints} constraints ({active:.0} active, {:.0} switched off), {iters} iterations, {:?}, frames {from}–{} × {runs} runs (medians), {}",
+        constraints as f64 - active,
         method,
+        from + frames - 1,
         match threads {
             0 => format!("{} threads (every core)", rayon_cores()),
             1 => "1 thread".to_string(),
@@ -342,13 +363,17 @@ pub fn run(
         );
     }
     println!("{:<16}{:>12.4}   ({:.0} fps)", "wall", wall, 1e3 / wall);
-    let ns = wall * 1e6 / (constraints * iters).max(1) as f64;
-    let bare = bare_kernel_ns(constraints.max(1), iters.max(1));
-    println!(
-        "ns per constraint-iteration: {ns:.2} (bare XPBD distance loop: {bare:.2}, ratio {:.2})",
-        ns / bare
+    let ns = wall * 1e6 / work.max(1.0);
+    let reference = reference_ns(
+        active.round() as usize,
+        (work / active.max(1.0)).round() as usize,
+        threads,
     );
-    if timer_overhead {
+    println!(
+        "ns per active constraint-iteration: {ns:.2} (coloured reference sweep over as many, same threads: {reference:.2}, ratio {:.2})",
+        ns / reference
+    );
+    if args.timer_overhead {
         let off = median(untimed);
         println!(
             "timers off: {off:.4} ms/frame; timed − untimed {:+.2}% (run-to-run noise included)",

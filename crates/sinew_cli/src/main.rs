@@ -6,6 +6,7 @@ mod character;
 mod check;
 mod commands;
 mod import;
+mod reference_kernel;
 mod render;
 mod soak;
 mod suite;
@@ -63,22 +64,9 @@ enum Command {
         #[arg(long)]
         resume: bool,
     },
-    /// Per-block ms/frame (median of runs) and ns per constraint-iteration.
-    Bench {
-        /// Scene file or built-in name.
-        scene: String,
-        /// Frames per run.
-        #[arg(long, default_value_t = 120)]
-        frames: u32,
-        /// Measured runs (the median is reported).
-        #[arg(long, default_value_t = 7)]
-        runs: u32,
-        #[command(flatten)]
-        overrides: bench::Overrides,
-        /// Also time with block timers off, to show their overhead.
-        #[arg(long)]
-        timer_overhead: bool,
-    },
+    /// Per-block ms/frame (median of runs), active constraints and ns per
+    /// active constraint-iteration next to a coloured reference sweep.
+    Bench(bench::BenchArgs),
     /// The benchmark suite: P1–P4 and T7, every method, 1 to all threads,
     /// next to the thesis' tables; writes suite.json and PNG plots.
     Suite(suite::SuiteArgs),
@@ -171,13 +159,7 @@ fn main() -> ExitCode {
             };
             commands::bake(&scene, frames, &out, &format, existing)
         }
-        Command::Bench {
-            scene,
-            frames,
-            runs,
-            overrides,
-            timer_overhead,
-        } => bench::run(&scene, frames, runs, overrides, timer_overhead),
+        Command::Bench(args) => bench::run(&args),
         Command::Scene { name, out } => commands::write_builtin(&name, &out),
         Command::Render {
             scene,

@@ -2,15 +2,19 @@
 //!
 //! For each scene (P1, P2, P3, P4 = the 17-muscle arm at 5 iterations, T7 =
 //! the full body at 10), each method and each thread count: per-block
-//! ms/frame (median of the runs after a warm-up frame), fps, ns per
-//! constraint-iteration, and in the same run a bare XPBD distance loop over
-//! the same constraint count with the ratio to it. Also the colour counts
+//! ms/frame (median of the runs), fps, the active constraints (switched-off
+//! ones reported apart), ns per active constraint-iteration and, in the same
+//! process, the [coloured reference sweep](crate::reference_kernel) over as
+//! many constraints on as many threads, with the ratio to it. P1–P4 are
+//! timed from their first frame; T7 in a walk window (frames 120–239) and a
+//! run window (420–539), stepped to from the start. Also the colour counts
 //! and group-size distribution of each colouring (the thesis' Appendix A)
 //! and the measured cost of one parallel sweep's synchronisation. Writes
 //! `suite.json` and PNG plots into the output folder.
 
-use crate::bench::{Method, bare_kernel_ns, median, rayon_cores, time_frames};
+use crate::bench::{Method, active_work, median, rayon_cores, time_frames};
 use crate::commands::load_solver;
+use crate::reference_kernel::reference_ns;
 use serde::Serialize;
 use sinew_core::solver::coloring::{ColorPlan, PlanKind};
 use sinew_core::{Solver, SolverMethod, StepTimings};
@@ -47,8 +51,10 @@ pub struct SuiteArgs {
     /// Hybrid: smallest colour group solved Gauss–Seidel.
     #[arg(long, default_value_t = 32)]
     pub min_group: u32,
-    /// Simulated work per run, in constraint-iterations (sets the frame count).
-    #[arg(long, default_value_t = 3_000_000)]
+    /// Simulated work per run, in active constraint-iterations (sets the
+    /// frame count of scenes timed from their start; T7's windows are
+    /// fixed).
+    #[arg(long, default_value_t = 3_000_000, value_parser = clap::value_parser!(u64).range(1..))]
     pub work: u64,
 }
 
@@ -59,7 +65,33 @@ struct Reference {
     iterations: u32,
     /// The thesis' ms/frame: SST, SMT-J, SMT-G, SMT-G* (Tab 7.5, 7.8).
     thesis: [Option<f64>; 4],
+    /// Timed windows; none: from the first frame, as long as `--work` asks.
+    windows: &'static [Window],
 }
+
+/// A timed stretch of a scene's animation, stepped to from the start.
+struct Window {
+    /// What happens in it.
+    name: &'static str,
+    /// First timed frame.
+    from: u32,
+    /// Timed frames (split evenly between the runs).
+    frames: u32,
+}
+
+/// T7's windows: the walk and the run, where the body works.
+const T7_WINDOWS: [Window; 2] = [
+    Window {
+        name: "walk",
+        from: 120,
+        frames: 120,
+    },
+    Window {
+        name: "run",
+        from: 420,
+        frames: 120,
+    },
+];
 
 const REFERENCES: [Reference; 5] = [
     Reference {
@@ -67,30 +99,35 @@ const REFERENCES: [Reference; 5] = [
         path: "P1",
         iterations: 5,
         thesis: [Some(11.32), Some(7.30), Some(14.36), Some(8.28)],
+        windows: &[],
     },
     Reference {
         name: "P2",
         path: "P2",
         iterations: 5,
         thesis: [Some(24.57), Some(12.89), Some(30.80), Some(13.37)],
+        windows: &[],
     },
     Reference {
         name: "P3",
         path: "P3",
         iterations: 5,
         thesis: [Some(71.49), Some(32.74), Some(69.38), Some(26.26)],
+        windows: &[],
     },
     Reference {
         name: "P4",
         path: "assets/scenes/t5.ron",
         iterations: 5,
         thesis: [Some(531.92), Some(198.96), Some(406.68), Some(152.49)],
+        windows: &[],
     },
     Reference {
         name: "T7",
         path: "assets/scenes/t7.ron",
         iterations: 10,
         thesis: [Some(1414.0), Some(685.0), Some(1138.0), None],
+        windows: &T7_WINDOWS,
     },
 ];
 
@@ -123,24 +160,30 @@ struct Machine {
     cpu: String,
 }
 
-#[derive(Serialize)]
+/// One scene in one timed window.
+#[derive(Clone, Serialize)]
 struct SceneReport {
+    /// The scene, with its window (`T7 walk`).
     name: String,
     source: String,
+    /// First timed frame.
+    from_frame: u32,
     muscles: usize,
+    /// Every constraint, switched-off ones included.
     constraints: usize,
+    /// Active constraints, mean over the window (median over the runs of
+    /// every configuration).
+    active_constraints: f64,
     iterations: u32,
     frames_per_run: u32,
     runs: u32,
     /// The thesis' ms/frame per method name.
     thesis_ms: Vec<(String, f64)>,
-    /// The bare distance loop, ns per constraint-iteration.
-    bare_kernel_ns: f64,
     colorings: Vec<ColoringReport>,
     results: Vec<ResultRow>,
 }
 
-#[derive(Serialize)]
+#[derive(Clone, Serialize)]
 struct ColoringReport {
     plan: String,
     /// Sweeps per iteration: the largest colour count over the muscles.
@@ -154,7 +197,7 @@ struct ColoringReport {
     tail: usize,
 }
 
-#[derive(Serialize)]
+#[derive(Clone, Serialize)]
 struct ResultRow {
     method: String,
     threads: u32,
@@ -164,8 +207,15 @@ struct ResultRow {
     wall_min_ms: f64,
     wall_max_ms: f64,
     fps: f64,
+    /// Active constraints, mean over the timed frames.
+    active_constraints: f64,
+    /// Active constraint-iterations per frame.
+    work: f64,
     ns_per_constraint_iteration: f64,
-    ratio_to_bare: f64,
+    /// The coloured reference sweep over as many constraints on as many
+    /// threads, ns per constraint-iteration.
+    reference_ns: f64,
+    ratio_to_reference: f64,
 }
 
 fn method_label(method: SolverMethod) -> String {
@@ -288,90 +338,7 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode, Box<dyn Error>> {
             .collect::<Result<_, _>>()?
     };
     for reference in wanted {
-        let (_, mut solver) = load_solver(reference.path)?;
-        solver.settings.iterations = reference.iterations;
-        solver.prepare();
-        let constraints: usize = solver.muscles().iter().map(|m| m.counts().total()).sum();
-        let work = constraints as u64 * reference.iterations as u64;
-        let frames = (args.work / work.max(1)).clamp(5, 240) as u32;
-        let colorings = vec![
-            coloring(&solver, PlanKind::PerConstraint, "per muscle (thesis)"),
-            coloring(&solver, PlanKind::Clustered, "clustered (global)"),
-            coloring(
-                &solver,
-                PlanKind::Hybrid {
-                    min_group: args.min_group,
-                },
-                "hybrid",
-            ),
-        ];
-        eprintln!(
-            "{}: {constraints} constraints, {} iterations, {frames} frames × {runs} runs",
-            reference.name, reference.iterations
-        );
-        let bare = bare_kernel_ns(constraints, reference.iterations as usize);
-        let mut results = Vec::new();
-        for &method in &methods {
-            let method = method.solver_method(args.omega, args.min_group);
-            for &t in &threads {
-                let (_, mut solver) = load_solver(reference.path)?;
-                solver.settings.iterations = reference.iterations;
-                solver.settings.method = method;
-                solver.settings.threads = t;
-                solver.step();
-                let mut blocks: Vec<Vec<f64>> = vec![Vec::new(); 7];
-                let mut walls = Vec::new();
-                for _ in 0..runs {
-                    let (b, wall) = time_frames(&mut solver, frames);
-                    for (k, v) in b.iter().enumerate() {
-                        blocks[k].push(*v);
-                    }
-                    walls.push(wall);
-                }
-                let (lo, hi) = walls
-                    .iter()
-                    .fold((f64::MAX, 0.0f64), |(lo, hi), &w| (lo.min(w), hi.max(w)));
-                let wall = median(walls);
-                let ns = wall * 1e6 / work.max(1) as f64;
-                let row = ResultRow {
-                    method: method_label(method),
-                    threads: t,
-                    blocks_ms: StepTimings::NAMES
-                        .iter()
-                        .zip(blocks)
-                        .map(|(n, v)| (n.to_string(), median(v)))
-                        .collect(),
-                    wall_ms: wall,
-                    wall_min_ms: lo,
-                    wall_max_ms: hi,
-                    fps: 1e3 / wall,
-                    ns_per_constraint_iteration: ns,
-                    ratio_to_bare: ns / bare,
-                };
-                eprintln!(
-                    "  {:<22} {t:>2} threads  {wall:>9.3} ms/frame  {:>7.1} fps  {ns:>7.1} ns/ci  ×{:.2} bare",
-                    row.method, row.fps, row.ratio_to_bare
-                );
-                results.push(row);
-            }
-        }
-        scenes.push(SceneReport {
-            name: reference.name.into(),
-            source: reference.path.into(),
-            muscles: solver.muscles().len(),
-            constraints,
-            iterations: reference.iterations,
-            frames_per_run: frames,
-            runs,
-            thesis_ms: THESIS_METHODS
-                .iter()
-                .zip(reference.thesis)
-                .filter_map(|(n, v)| v.map(|v| (n.to_string(), v)))
-                .collect(),
-            bare_kernel_ns: bare,
-            colorings,
-            results,
-        });
+        scenes.extend(run_scene(reference, &methods, &threads, runs, args)?);
     }
     let tasks = scenes.iter().map(|s| s.muscles).max().unwrap_or(1);
     let report = Report {
@@ -398,11 +365,167 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode, Box<dyn Error>> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Times one reference scene with every method and thread count: a report
+/// per window.
+fn run_scene(
+    reference: &Reference,
+    methods: &[Method],
+    threads: &[u32],
+    runs: u32,
+    args: &SuiteArgs,
+) -> Result<Vec<SceneReport>, Box<dyn Error>> {
+    let (_, mut solver) = load_solver(reference.path)?;
+    solver.settings.iterations = reference.iterations;
+    solver.prepare();
+    let constraints: usize = solver.muscles().iter().map(|m| m.counts().total()).sum();
+    let windows: Vec<(String, u32, u32)> = if reference.windows.is_empty() {
+        let (_, work) = active_work(&solver);
+        let per_run = (args.work as f64 / work.max(1.0)).clamp(5.0, 240.0) as u32;
+        vec![(reference.name.to_string(), 1, per_run * runs)]
+    } else {
+        reference
+            .windows
+            .iter()
+            .map(|w| (format!("{} {}", reference.name, w.name), w.from, w.frames))
+            .collect()
+    };
+    let colorings = vec![
+        coloring(&solver, PlanKind::PerConstraint, "per muscle (thesis)"),
+        coloring(&solver, PlanKind::Clustered, "clustered (global)"),
+        coloring(
+            &solver,
+            PlanKind::Hybrid {
+                min_group: args.min_group,
+            },
+            "hybrid",
+        ),
+    ];
+    let mut reports: Vec<SceneReport> = windows
+        .iter()
+        .map(|(name, from, frames)| SceneReport {
+            name: name.clone(),
+            source: reference.path.into(),
+            from_frame: *from,
+            muscles: solver.muscles().len(),
+            constraints,
+            active_constraints: 0.0,
+            iterations: reference.iterations,
+            frames_per_run: (frames / runs).max(1),
+            runs,
+            thesis_ms: THESIS_METHODS
+                .iter()
+                .zip(reference.thesis)
+                .filter_map(|(n, v)| v.map(|v| (n.to_string(), v)))
+                .collect(),
+            colorings: colorings.clone(),
+            results: Vec::new(),
+        })
+        .collect();
+    for r in &reports {
+        eprintln!(
+            "{}: {constraints} constraints, {} iterations, frames {}.. in {runs} runs of {}",
+            r.name, reference.iterations, r.from_frame, r.frames_per_run
+        );
+    }
+    for &method in methods {
+        let method = method.solver_method(args.omega, args.min_group);
+        for &t in threads {
+            let (_, mut solver) = load_solver(reference.path)?;
+            solver.settings.iterations = reference.iterations;
+            solver.settings.method = method;
+            solver.settings.threads = t;
+            let mut frame = 0;
+            for report in &mut reports {
+                // Untimed up to the window (at least one warm-up frame).
+                while frame < report.from_frame.max(1) {
+                    solver.step();
+                    frame += 1;
+                }
+                let timed: Vec<_> = (0..runs)
+                    .map(|_| time_frames(&mut solver, report.frames_per_run))
+                    .collect();
+                frame += runs * report.frames_per_run;
+                let row = result_row(method, t, &timed);
+                eprintln!(
+                    "  {:<10} {:<22} {t:>2} threads  {:>9.3} ms/frame  {:>7.0} active  {:>7.1} ns/ci  ×{:.2} reference",
+                    report.name,
+                    row.method,
+                    row.wall_ms,
+                    row.active_constraints,
+                    row.ns_per_constraint_iteration,
+                    row.ratio_to_reference
+                );
+                report.results.push(row);
+            }
+        }
+    }
+    for report in &mut reports {
+        report.active_constraints = median(
+            report
+                .results
+                .iter()
+                .map(|r| r.active_constraints)
+                .collect(),
+        );
+    }
+    Ok(reports)
+}
+
+/// The medians of `timed` runs of one configuration, with the reference
+/// sweep over as many active constraints on as many threads.
+fn result_row(method: SolverMethod, threads: u32, timed: &[crate::bench::FrameTimes]) -> ResultRow {
+    let walls: Vec<f64> = timed.iter().map(|f| f.wall).collect();
+    let (lo, hi) = walls
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(lo, hi), &w| (lo.min(w), hi.max(w)));
+    let wall = median(walls);
+    let active = median(timed.iter().map(|f| f.active).collect());
+    let work = median(timed.iter().map(|f| f.work).collect());
+    let ns = wall * 1e6 / work.max(1.0);
+    let reference = reference_ns(
+        active.round() as usize,
+        (work / active.max(1.0)).round() as usize,
+        threads,
+    );
+    ResultRow {
+        method: method_label(method),
+        threads,
+        blocks_ms: StepTimings::NAMES
+            .iter()
+            .enumerate()
+            .map(|(k, n)| {
+                (
+                    n.to_string(),
+                    median(timed.iter().map(|f| f.blocks[k]).collect()),
+                )
+            })
+            .collect(),
+        wall_ms: wall,
+        wall_min_ms: lo,
+        wall_max_ms: hi,
+        fps: 1e3 / wall,
+        active_constraints: active,
+        work,
+        ns_per_constraint_iteration: ns,
+        reference_ns: reference,
+        ratio_to_reference: ns / reference,
+    }
+}
+
 /// The summary table: ours (best method per thread count) next to the thesis.
 fn print_table(report: &Report) {
     println!(
-        "\n{:<5}{:>12}{:>6}  {:<24}{:>8}{:>11}{:>9}{:>10}{:>8}   thesis best",
-        "scene", "constraints", "iter", "method", "threads", "ms/frame", "fps", "ns/ci", "×bare"
+        "\n{:<9}{:>13}{:>6}  {:<24}{:>8}{:>11}{:>9}{:>10}{:>9}{:>8}   thesis best",
+        "scene",
+        "active/all",
+        "iter",
+        "method",
+        "threads",
+        "ms/frame",
+        "fps",
+        "ns/ci",
+        "ref ns",
+        "×ref"
     );
     for s in &report.scenes {
         let thesis = s
@@ -422,16 +545,17 @@ fn print_table(report: &Report) {
                 .min_by(|a, b| a.wall_ms.total_cmp(&b.wall_ms));
             if let Some(r) = best {
                 println!(
-                    "{:<5}{:>12}{:>6}  {:<24}{:>8}{:>11.3}{:>9.1}{:>10.1}{:>8.2}   {thesis}",
+                    "{:<9}{:>13}{:>6}  {:<24}{:>8}{:>11.3}{:>9.1}{:>10.2}{:>9.2}{:>8.2}   {thesis}",
                     s.name,
-                    s.constraints,
+                    format!("{:.0}/{}", r.active_constraints, s.constraints),
                     s.iterations,
                     r.method,
                     t,
                     r.wall_ms,
                     r.fps,
                     r.ns_per_constraint_iteration,
-                    r.ratio_to_bare
+                    r.reference_ns,
+                    r.ratio_to_reference
                 );
             }
         }
@@ -440,7 +564,7 @@ fn print_table(report: &Report) {
             .iter()
             .map(|c| format!("{} {} sweeps", c.plan, c.sweeps))
             .collect();
-        println!("      colourings: {}", sweeps.join(", "));
+        println!("          colourings: {}", sweeps.join(", "));
     }
     for (t, us) in &report.sync_us {
         println!("sync: one parallel sweep on {t} threads costs {us:.2} µs");

@@ -72,8 +72,8 @@ fn plot_blocks(s: &SceneReport, path: &Path) -> Result<(), Box<dyn Error>> {
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
-                "{}: {} constraints, {} iterations — ms/frame by block",
-                s.name, s.constraints, s.iterations
+                "{}: {:.0} active of {} constraints, {} iterations — ms/frame by block",
+                s.name, s.active_constraints, s.constraints, s.iterations
             ),
             ("sans-serif", 26),
         )
@@ -168,8 +168,8 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
     let (mut lo_x, mut hi_x) = (f64::MAX, 1.0f64);
     let (mut lo_y, mut hi_y) = (f64::MAX, 1e-3f64);
     for s in &report.scenes {
-        lo_x = lo_x.min(s.constraints as f64);
-        hi_x = hi_x.max(s.constraints as f64);
+        lo_x = lo_x.min(s.active_constraints);
+        hi_x = hi_x.max(s.active_constraints);
         for v in s
             .results
             .iter()
@@ -182,7 +182,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
     }
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            format!("ms/frame vs constraints ({max_threads} threads; thesis dashed)"),
+            format!("ms/frame vs active constraints ({max_threads} threads; thesis dashed)"),
             ("sans-serif", 26),
         )
         .margin(16)
@@ -194,7 +194,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
         )?;
     chart
         .configure_mesh()
-        .x_desc("constraints")
+        .x_desc("active constraints")
         .y_desc("ms/frame")
         .draw()?;
     for (i, method) in methods_of(report).iter().enumerate() {
@@ -206,7 +206,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
                 s.results
                     .iter()
                     .find(|r| &r.method == method && r.threads == max_threads)
-                    .map(|r| (s.constraints as f64, r.wall_ms))
+                    .map(|r| (s.active_constraints, r.wall_ms))
             })
             .collect();
         line_with_points(&mut chart, points, color, method.as_str())?;
@@ -219,7 +219,7 @@ fn plot_scaling(report: &Report, path: &Path) -> Result<(), Box<dyn Error>> {
                 s.thesis_ms
                     .iter()
                     .find(|t| t.0 == *name)
-                    .map(|t| (s.constraints as f64, t.1))
+                    .map(|t| (s.active_constraints, t.1))
             })
             .collect();
         let color = THESIS_COLORS[k].mix(0.8);
