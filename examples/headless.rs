@@ -6,7 +6,9 @@
 //! plugins but no sinew, updated in the same lockstep.
 //!
 //! `--threads N` runs both drivers on N worker threads (default: the
-//! scene's).
+//! scene's). `--instances N` spawns a crowd: N copies of the scene's body
+//! side by side, 1 m apart, each started 0.25 s after the one before
+//! (`Scene::crowd`), in one plug-in.
 //!
 //! `cargo run --release --example headless -- assets/scenes/t5.ron 120 --compare --threads 2`
 
@@ -36,18 +38,26 @@ fn print_blocks(title: &str, blocks: impl IntoIterator<Item = (&'static str, Dur
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let compare = args.iter().any(|a| a == "--compare");
-    let threads = match args.iter().position(|a| a == "--threads") {
-        Some(i) => Some(
-            args.get(i + 1)
-                .ok_or("--threads needs a count")?
-                .parse::<u32>()?,
-        ),
-        None => None,
+    let count = |flag: &str| -> Result<Option<u32>, Box<dyn std::error::Error>> {
+        match args.iter().position(|a| a == flag) {
+            Some(i) => Ok(Some(
+                args.get(i + 1)
+                    .ok_or(format!("{flag} needs a count"))?
+                    .parse::<u32>()
+                    .map_err(|e| format!("{flag}: {e}"))?,
+            )),
+            None => Ok(None),
+        }
     };
+    let threads = count("--threads")?;
+    let instances = count("--instances")?.unwrap_or(1);
     let mut positional = args
         .iter()
         .enumerate()
-        .filter(|&(i, a)| !a.starts_with("--") && (i == 0 || args[i - 1] != "--threads"))
+        .filter(|&(i, a)| {
+            !a.starts_with("--")
+                && (i == 0 || !matches!(args[i - 1].as_str(), "--threads" | "--instances"))
+        })
         .map(|(_, a)| a);
     let path = positional
         .next()
@@ -57,6 +67,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("run at least 2 frames (the first is left out of the medians)".into());
     }
     let mut scene = SinewScene::load(Path::new(path))?;
+    if instances > 1 {
+        let spacing = sinew::core::glam::Vec3::X * scene.scene.settings.length_unit;
+        let crowd = scene.scene.crowd(instances, spacing, 0.25)?;
+        scene = SinewScene::build(crowd, Path::new(path).parent().unwrap())?;
+    }
     if let Some(threads) = threads {
         scene.scene.settings.threads = threads;
         scene.parts.settings.threads = threads;
@@ -98,7 +113,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ecs_ms.push(ms(start.elapsed()));
         blocks_ms.push(ms(app.world().resource::<SinewTimings>().total));
     }
-    println!("{path}: {frames} frames");
+    println!("{path} ×{instances}: {frames} frames");
     if let Some(solver) = &plain {
         let t = solver.timings();
         print_blocks(

@@ -2,6 +2,7 @@
 
 use crate::commands::{load_scene, truncate};
 use crate::reference_kernel::reference_ns;
+use sinew_core::glam::Vec3;
 use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings, SweepSchedule};
 use std::error::Error;
 use std::process::ExitCode;
@@ -52,6 +53,20 @@ pub struct BenchArgs {
     /// warm-up frame.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub from: u32,
+    /// Copies of the scene's body side by side in one solver, a crowd
+    /// (`Scene::crowd`): each `--spacing` beside the one before and started
+    /// `--delay` later, so the copies are in different phases of the
+    /// animation. Default 1: the scene alone.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=sinew_core::scene::MAX_CROWD as i64))]
+    pub instances: u32,
+    /// Distance between copies, along X. Units: m (scaled by the scene's
+    /// `length_unit`). Default 1.
+    #[arg(long, default_value_t = 1.0, value_parser = crate::args::non_negative)]
+    pub spacing: f32,
+    /// How much later each copy starts its animation than the one before.
+    /// Units: s. Default 0.25.
+    #[arg(long, default_value_t = 0.25, value_parser = crate::args::non_negative)]
+    pub delay: f32,
     #[command(flatten)]
     pub overrides: Overrides,
     /// Also time with block timers off, to show their overhead.
@@ -231,6 +246,10 @@ fn surface_layers(scene: &sinew_core::scene::Scene) -> Vec<String> {
 /// One run: steps to `args.from` untimed, then times `args.frames` frames.
 fn run_once(args: &BenchArgs, timers: bool, bodies: Bodies) -> Result<RunResult, Box<dyn Error>> {
     let (mut spec, base) = load_scene(&args.scene)?;
+    if args.instances > 1 {
+        let spacing = Vec3::X * args.spacing * spec.settings.length_unit;
+        spec = spec.crowd(args.instances, spacing, args.delay)?;
+    }
     if bodies == Bodies::WithoutLayers {
         let layers = surface_layers(&spec);
         spec.muscles.retain(|m| !layers.contains(&m.name));
@@ -310,6 +329,12 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
     let wall = median(walls);
     let (active, work) = (median(actives), median(works));
     let (scene, frames, from) = (&args.scene, args.frames, args.from);
+    if args.instances > 1 {
+        println!(
+            "a crowd of {} copies, {} m apart, each started {} s after the one before",
+            args.instances, args.spacing, args.delay
+        );
+    }
     println!(
         "scene {scene}: {constraints} constraints ({active:.0} active, {:.0} switched off), {iters} iterations, {:?}, frames {from}–{} × {runs} runs (medians), {}",
         constraints as f64 - active,

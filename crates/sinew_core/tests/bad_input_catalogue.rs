@@ -130,6 +130,7 @@ fn with_mesh_file(path: &str) -> String {
         triangulate: false,
         scale: 1.0,
         orient_outward: false,
+        translation: sinew_core::glam::Vec3::ZERO,
     };
     scene.to_ron().unwrap()
 }
@@ -216,6 +217,7 @@ fn scene_cases() -> Vec<Case> {
         scene("ellipsoid of 270 000 vertices (fuzzing: a 786 000-vertex build ran 20 min)", &[("segments: 10,", "segments: 30000,")], &["<generated oval>", "about 270002 vertices"]),
         scene("ellipsoid of 4e9 segments", &[("segments: 10,", "segments: 4000000000,")], &["<generated oval>", "more than the 200000"]),
         file("missing mesh file", Reader::Scene, "ron", with_mesh_file("nope.obj"), &["nope.obj", "cannot read"]),
+        file("NaN mesh translation", Reader::Scene, "ron", with_mesh_file("m.obj").replace("path: \"m.obj\",", "path: \"m.obj\", translation: Vec3(NaN, 0, 0),"), &["muscle 'oval' mesh", "translation", "not finite"]),
         scene("skeleton body its own parent", &[("skeleton: None,", "skeleton: Some(Skeleton(bodies: [(name: \"a\", parent: Some(\"a\"))])),")], &["skeleton body 0 'a'", "parent 'a'"]),
         scene("skeleton body parent listed later", &[("skeleton: None,", "skeleton: Some(Skeleton(bodies: [(name: \"a\", parent: Some(\"b\")), (name: \"b\", parent: Some(\"a\"))])),")], &["skeleton body 0 'a'", "parent 'b'"]),
         scene("bone following a missing body", &[("body: None,", "body: Some(\"pelvis\"),")], &["bone 'ground'", "unknown skeleton body 'pelvis'"]),
@@ -320,6 +322,7 @@ fn read(reader: Reader, path: &Path) -> Result<(), String> {
                 triangulate: false,
                 scale: 1.0,
                 orient_outward: false,
+                translation: sinew_core::glam::Vec3::ZERO,
             };
             scene.muscles[0].attachments.clear();
             scene.instantiate(dir).map(drop).map_err(|e| e.to_string())

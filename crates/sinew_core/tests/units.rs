@@ -62,6 +62,7 @@ fn brachialis_over_ground(unit: f32, method: SolverMethod, activation: f32) -> S
                 triangulate: false,
                 scale: unit,
                 orient_outward: false,
+                translation: sinew_core::glam::Vec3::ZERO,
             },
             attachments: tips
                 .iter()

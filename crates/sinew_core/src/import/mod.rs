@@ -415,6 +415,7 @@ pub fn import_model(
                 triangulate: false,
                 scale: 1.0,
                 orient_outward: false,
+                translation: glam::Vec3::ZERO,
             },
             roots: Roots::Vertices(m.tips.to_vec()),
             attachments,

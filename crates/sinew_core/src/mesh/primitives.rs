@@ -75,6 +75,30 @@ pub enum MeshGenerator {
 }
 
 impl MeshGenerator {
+    /// The same generator moved by `offset` (units: m).
+    pub fn translated(&self, offset: Vec3) -> Self {
+        let mut moved = self.clone();
+        match &mut moved {
+            Self::Ellipsoid { center, .. } | Self::Box { center, .. } => *center += offset,
+            Self::Fusiform { start, end, .. } => {
+                *start += offset;
+                *end += offset;
+            }
+            Self::Bifurcated {
+                end,
+                junction,
+                head_a,
+                head_b,
+                ..
+            } => {
+                for p in [end, junction, head_a, head_b] {
+                    *p += offset;
+                }
+            }
+        }
+        moved
+    }
+
     /// Builds the mesh. `name` appears in error messages.
     pub fn build(&self, name: &str) -> Result<SurfaceMesh, MeshError> {
         let source = format!("<generated {name}>");

@@ -92,15 +92,22 @@ pub(super) fn muscle_mesh(
             triangulate,
             scale,
             orient_outward,
-        } => load_mesh(
-            &resolve(base_dir, path),
-            &LoadOptions {
-                triangulate: *triangulate,
-                scale: *scale,
-                orient_outward: *orient_outward,
-                ..Default::default()
-            },
-        )?,
+            translation,
+        } => {
+            let mut mesh = load_mesh(
+                &resolve(base_dir, path),
+                &LoadOptions {
+                    triangulate: *triangulate,
+                    scale: *scale,
+                    orient_outward: *orient_outward,
+                    ..Default::default()
+                },
+            )?;
+            for p in &mut mesh.positions {
+                *p += *translation;
+            }
+            mesh
+        }
         MeshSource::Generator(g) => g.build(name)?,
     })
 }

@@ -25,6 +25,8 @@
 
 mod binding;
 mod builtin;
+mod crowd;
+pub use crowd::MAX_CROWD;
 mod meshes;
 mod validate;
 
@@ -131,6 +133,10 @@ pub enum MeshSource {
         /// (negative volume) instead of refusing it. Default: false.
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         orient_outward: bool,
+        /// Moves the mesh, after the scale (a copy of a body placed beside
+        /// it, see [`Scene::crowd`]). Units: scene units. Default: zero.
+        #[serde(default, skip_serializing_if = "is_zero_vector")]
+        translation: Vec3,
     },
     /// A built-in generator.
     Generator(MeshGenerator),
@@ -160,6 +166,10 @@ pub struct AttachmentSpec {
 
 fn is_zero(x: &f32) -> bool {
     *x == 0.0
+}
+
+fn is_zero_vector(v: &Vec3) -> bool {
+    *v == Vec3::ZERO
 }
 
 /// A muscle in a scene.

@@ -31,8 +31,17 @@ impl Scene {
                     .validate(0.0..=1.0)
                     .map_err(|reason| invalid(format!("muscle '{}' activation", m.name), reason))?;
             }
-            if let MeshSource::File { scale, .. } = &m.mesh {
+            if let MeshSource::File {
+                scale, translation, ..
+            } = &m.mesh
+            {
                 check_scale(*scale).map_err(|r| invalid(format!("muscle '{}' mesh", m.name), r))?;
+                if !translation.is_finite() {
+                    return Err(invalid(
+                        format!("muscle '{}' mesh", m.name),
+                        format!("translation {translation} is not finite"),
+                    ));
+                }
             }
             for (i, a) in m.attachments.iter().enumerate() {
                 check_attachment(a).map_err(|reason| {

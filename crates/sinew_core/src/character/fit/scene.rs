@@ -152,6 +152,7 @@ impl AnatomyFit {
                 triangulate: false,
                 scale: 1.0,
                 orient_outward: false,
+                translation: glam::Vec3::ZERO,
             };
             spec.params.hold_shape = true;
             spec.attachments = m

@@ -109,6 +109,7 @@ impl FittedScene {
                 triangulate: false,
                 scale: 1.0,
                 orient_outward: false,
+                translation: glam::Vec3::ZERO,
             },
             roots: Roots::Vertices(Vec::new()),
             targets,
