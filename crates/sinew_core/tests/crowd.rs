@@ -29,45 +29,42 @@ fn distance_from_moved(one: &Solver, crowd: &Solver, spacing: Vec3, k: usize) ->
     worst
 }
 
+/// Steps `scene` and a crowd of three undelayed copies of it `frames`
+/// frames; every copy must be within `tolerance` of the scene moved.
+fn copies_follow(scene: &Scene, base: &Path, spacing: Vec3, frames: usize, tolerance: f32) {
+    let crowd = scene.crowd(3, spacing, 0.0).unwrap();
+    let mut one = scene.instantiate(base).unwrap();
+    let mut three = crowd.instantiate(base).unwrap();
+    assert_eq!(three.muscles().len(), 3 * one.muscles().len());
+    assert_eq!(three.bones().len(), 3 * one.bones().len());
+    for _ in 0..frames {
+        one.step();
+        three.step();
+    }
+    assert_eq!(distance_from_moved(&one, &three, spacing, 0), 0.0);
+    for k in 1..3 {
+        let d = distance_from_moved(&one, &three, spacing, k);
+        assert!(
+            d < tolerance,
+            "{}: copy {k} is {d} m from the scene moved",
+            scene.name
+        );
+    }
+}
+
 /// Without a delay every copy moves as the scene, moved by its offset, up
 /// to f32 rounding (positions a metre further out round differently).
 #[test]
 fn copies_without_delay_move_as_the_scene_does() {
     // P3: two muscles pressed together, at rest.
-    let scene = builtin("P3").unwrap();
-    let spacing = Vec3::new(0.5, 0.0, 0.25);
-    let crowd = scene.crowd(3, spacing, 0.0).unwrap();
-    let mut one = scene.instantiate(Path::new(".")).unwrap();
-    let mut three = crowd.instantiate(Path::new(".")).unwrap();
-    assert_eq!(three.muscles().len(), 3 * one.muscles().len());
-    for _ in 0..60 {
-        one.step();
-        three.step();
-    }
-    assert_eq!(distance_from_moved(&one, &three, spacing, 0), 0.0);
-    for k in 1..3 {
-        let d = distance_from_moved(&one, &three, spacing, k);
-        assert!(d < 1e-4, "copy {k} is {d} m from the scene moved");
-    }
+    let p3 = builtin("P3").unwrap();
+    copies_follow(&p3, Path::new("."), Vec3::new(0.5, 0.0, 0.25), 60, 1e-4);
     // T3, an animated arm with a skeleton and sensors: the first frames,
     // before a contact decided by a rounding amplifies the difference (the
     // arm's motion is sensitive to it: after 40 frames copies differ by
     // 3 mm on average).
-    let (scene, base) = t3();
-    let spacing = Vec3::new(0.6, 0.0, 0.0);
-    let crowd = scene.crowd(3, spacing, 0.0).unwrap();
-    let mut one = scene.instantiate(base).unwrap();
-    let mut three = crowd.instantiate(base).unwrap();
-    assert_eq!(three.bones().len(), 3 * one.bones().len());
-    for _ in 0..3 {
-        one.step();
-        three.step();
-    }
-    assert_eq!(distance_from_moved(&one, &three, spacing, 0), 0.0);
-    for k in 1..3 {
-        let d = distance_from_moved(&one, &three, spacing, k);
-        assert!(d < 1e-5, "copy {k} is {d} m from the scene moved");
-    }
+    let (t3, base) = t3();
+    copies_follow(&t3, base, Vec3::new(0.6, 0.0, 0.0), 3, 1e-5);
 }
 
 /// A delayed copy holds its first pose for its delay, then replays the

@@ -131,22 +131,10 @@ impl Copy {
     fn muscle(&self, muscle: &MuscleSpec) -> MuscleSpec {
         let mut m = muscle.clone();
         m.name = self.name(&m.name);
-        m.mesh = match &m.mesh {
-            MeshSource::File {
-                path,
-                triangulate,
-                scale,
-                orient_outward,
-                translation,
-            } => MeshSource::File {
-                path: path.clone(),
-                triangulate: *triangulate,
-                scale: *scale,
-                orient_outward: *orient_outward,
-                translation: *translation + self.offset,
-            },
-            MeshSource::Generator(g) => MeshSource::Generator(g.translated(self.offset)),
-        };
+        match &mut m.mesh {
+            MeshSource::File { translation, .. } => *translation += self.offset,
+            MeshSource::Generator(g) => *g = g.translated(self.offset),
+        }
         m.attachments = m
             .attachments
             .iter()
