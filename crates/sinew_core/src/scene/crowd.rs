@@ -186,8 +186,13 @@ impl Copy {
 
 impl Scene {
     /// `copies` copies of the scene side by side in one scene: copy `k`
-    /// moved by `k × spacing` (scene units) and started `k × delay` seconds
-    /// later (see the [module docs](self)). The frame count grows by the
+    /// (from 0) moved by `k × spacing` (scene units) and started `k × delay`
+    /// seconds later — every bone track, joint motion and activation curve
+    /// delayed, its first pose held meanwhile —, so that the copies are in
+    /// different phases of their animation. Copy 0 keeps the scene's names;
+    /// copy `k ≥ 1` renames every bone, skeleton body, joint, muscle and
+    /// sensor `name#k` and every reference to them, so each copy attaches
+    /// to, slides on and senses only itself. The frame count grows by the
     /// last copy's delay. Errors: `copies` outside `1..=`[`MAX_CROWD`], a
     /// spacing or delay that is not finite, a negative delay.
     pub fn crowd(&self, copies: u32, spacing: Vec3, delay: f32) -> Result<Scene, SceneError> {
