@@ -51,7 +51,8 @@ fn register_font() -> Result<(), Box<dyn Error>> {
 pub(super) fn plot(report: &Report, out: &Path) -> Result<(), Box<dyn Error>> {
     register_font()?;
     for s in &report.scenes {
-        plot_blocks(s, &out.join(format!("blocks_{}.png", s.name)))?;
+        let file = format!("blocks_{}.png", s.name.replace(' ', "_"));
+        plot_blocks(s, &out.join(file))?;
     }
     plot_scaling(report, &out.join("scaling.png"))?;
     plot_speedup(report, &out.join("speedup.png"))?;
