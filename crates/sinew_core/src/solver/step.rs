@@ -14,12 +14,15 @@ use std::sync::Mutex;
 impl Solver {
     /// Advances one frame. With worker threads the whole frame runs on
     /// one of them, so its passes reach the others without a cross-thread
-    /// hand-off each.
+    /// hand-off each — unless the scene is small enough to run on the
+    /// calling thread anyway ([`Parallelism`]), which then saves the
+    /// hand-off (≈ 15 µs: P1 on 2 threads went from 0.047 to 0.032 ms).
     pub fn step(&mut self) {
         let frame = self.begin_step();
+        let parallel = frame.parallelism.muscles || frame.parallelism.particles;
         match self.pool.threads() {
-            Some(threads) => threads.install(|| self.run_frame(&frame)),
-            None => self.run_frame(&frame),
+            Some(threads) if parallel => threads.install(|| self.run_frame(&frame)),
+            _ => self.run_frame(&frame),
         }
     }
 
