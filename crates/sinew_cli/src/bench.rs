@@ -33,6 +33,8 @@ struct RunResult {
     clock_reads: u32,
     /// Worker threads setting (0 = every core).
     threads: u32,
+    /// Whether the muscle passes ran on the worker threads.
+    parallel: bool,
     /// Projection method.
     method: SolverMethod,
 }
@@ -181,6 +183,14 @@ pub struct FrameTimes {
     pub work: f64,
 }
 
+/// Whether `solver` runs its muscle passes on its worker threads: a scene
+/// below `parallel_threshold` stays on the calling thread (the reference
+/// sweep is then timed on one thread too).
+pub fn runs_parallel(solver: &Solver) -> bool {
+    let threads = solver.settings.threads != 1;
+    sinew_core::solver::Parallelism::decide(&solver.settings, threads, solver.muscles()).muscles
+}
+
 /// Constraints of `solver` that act now, and the constraint-iterations a
 /// frame of them is.
 pub fn active_work(solver: &Solver) -> (usize, f64) {
@@ -272,6 +282,7 @@ fn run_once(args: &BenchArgs, timers: bool, bodies: Bodies) -> Result<RunResult,
         iterations: solver.settings.iterations as usize,
         clock_reads: solver.timings().clock_reads,
         threads: solver.settings.threads,
+        parallel: runs_parallel(&solver),
         method: solver.settings.method,
     })
 }
@@ -300,6 +311,7 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
     let (mut walls, mut actives, mut works) = (Vec::new(), Vec::new(), Vec::new());
     let mut untimed = Vec::new();
     let (mut constraints, mut iters, mut reads_per_frame, mut threads) = (0, 0, 0, 1);
+    let mut parallel = false;
     let mut method = SolverMethod::Sequential;
     // A scene with surface layers is also run without them, interleaved:
     // the difference is the layers' own line.
@@ -315,6 +327,7 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
         works.push(r.times.work);
         (constraints, iters, reads_per_frame, threads) =
             (r.constraints, r.iterations, r.clock_reads, r.threads);
+        parallel = r.parallel;
         method = r.method;
         if args.timer_overhead {
             untimed.push(run_once(args, false, Bodies::All)?.times.wall);
@@ -389,13 +402,19 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
     }
     println!("{:<16}{:>12.4}   ({:.0} fps)", "wall", wall, 1e3 / wall);
     let ns = wall * 1e6 / work.max(1.0);
+    let reference_threads = if parallel { threads } else { 1 };
     let reference = reference_ns(
         active.round() as usize,
         (work / active.max(1.0)).round() as usize,
-        threads,
+        reference_threads,
     );
     println!(
-        "ns per active constraint-iteration: {ns:.2} (coloured reference sweep over as many, same threads: {reference:.2}, ratio {:.2})",
+        "ns per active constraint-iteration: {ns:.2} (coloured reference sweep over as many, on {}: {reference:.2}, ratio {:.2})",
+        if parallel {
+            "the same threads"
+        } else {
+            "one thread, as the scene runs"
+        },
         ns / reference
     );
     if args.timer_overhead {

@@ -1,7 +1,8 @@
 //! The yardstick of `sinew bench` and `sinew suite`: a coloured,
 //! structure-of-arrays XPBD distance sweep over as many independent
-//! constraints as the scene has active ones, on as many threads, with as
-//! many iterations, chunked as sinew chunks its colours. What is left
+//! constraints as the scene has active ones, on as many threads (one where
+//! the scene is below `parallel_threshold` and sinew keeps it on the calling
+//! thread), with as many iterations, chunked as sinew chunks its colours. What is left
 //! between it and sinew is the model (other constraint types, targets,
 //! closest data, integration) and the orchestration, not the machine.
 //!

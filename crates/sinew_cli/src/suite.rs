@@ -12,7 +12,7 @@
 //! and the measured cost of one parallel sweep's synchronisation. Writes
 //! `suite.json` and PNG plots into the output folder.
 
-use crate::bench::{Method, active_work, median, rayon_cores, time_frames};
+use crate::bench::{Method, active_work, median, rayon_cores, runs_parallel, time_frames};
 use crate::commands::load_solver;
 use crate::reference_kernel::reference_ns;
 use serde::Serialize;
@@ -213,7 +213,8 @@ struct ResultRow {
     work: f64,
     ns_per_constraint_iteration: f64,
     /// The coloured reference sweep over as many constraints on as many
-    /// threads, ns per constraint-iteration.
+    /// threads (one where the scene stays on the calling thread, below
+    /// `parallel_threshold`), ns per constraint-iteration.
     reference_ns: f64,
     ratio_to_reference: f64,
 }
@@ -445,7 +446,8 @@ fn run_scene(
                     .map(|_| time_frames(&mut solver, report.frames_per_run))
                     .collect();
                 frame += runs * report.frames_per_run;
-                let row = result_row(method, t, &timed);
+                let reference_threads = if runs_parallel(&solver) { t } else { 1 };
+                let row = result_row(method, t, reference_threads, &timed);
                 eprintln!(
                     "  {:<10} {:<22} {t:>2} threads  {:>9.3} ms/frame  {:>7.0} active  {:>7.1} ns/ci  ×{:.2} reference",
                     report.name,
@@ -471,9 +473,15 @@ fn run_scene(
     Ok(reports)
 }
 
-/// The medians of `timed` runs of one configuration, with the reference
-/// sweep over as many active constraints on as many threads.
-fn result_row(method: SolverMethod, threads: u32, timed: &[crate::bench::FrameTimes]) -> ResultRow {
+/// The medians of `timed` runs of one configuration on `threads` threads,
+/// with the reference sweep over as many active constraints on
+/// `reference_threads` (one where the scene stays on the calling thread).
+fn result_row(
+    method: SolverMethod,
+    threads: u32,
+    reference_threads: u32,
+    timed: &[crate::bench::FrameTimes],
+) -> ResultRow {
     let walls: Vec<f64> = timed.iter().map(|f| f.wall).collect();
     let (lo, hi) = walls
         .iter()
@@ -485,7 +493,7 @@ fn result_row(method: SolverMethod, threads: u32, timed: &[crate::bench::FrameTi
     let reference = reference_ns(
         active.round() as usize,
         (work / active.max(1.0)).round() as usize,
-        threads,
+        reference_threads,
     );
     ResultRow {
         method: method_label(method),
