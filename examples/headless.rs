@@ -66,12 +66,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if frames < 2 {
         return Err("run at least 2 frames (the first is left out of the medians)".into());
     }
-    let mut scene = SinewScene::load(Path::new(path))?;
-    if instances > 1 {
-        let spacing = sinew::core::glam::Vec3::X * scene.scene.settings.length_unit;
-        let crowd = scene.scene.crowd(instances, spacing, 0.25)?;
-        scene = SinewScene::build(crowd, Path::new(path).parent().unwrap())?;
-    }
+    let mut scene = if instances > 1 {
+        // Read once, built once: the crowd, not the scene and then the crowd.
+        let file = Path::new(path);
+        let single = sinew::core::scene::Scene::load(file)?;
+        let spacing = sinew::core::glam::Vec3::X * single.settings.length_unit;
+        let crowd = single.crowd(instances, spacing, 0.25)?;
+        let base = file.parent().unwrap_or(Path::new("."));
+        SinewScene::build(crowd, base).map_err(|e| e.in_file(file))?
+    } else {
+        SinewScene::load(Path::new(path))?
+    };
     if let Some(threads) = threads {
         scene.scene.settings.threads = threads;
         scene.parts.settings.threads = threads;

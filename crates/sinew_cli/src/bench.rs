@@ -1,7 +1,7 @@
 //! `sinew bench`: per-block ms/frame, medians of several runs.
 
 use crate::commands::{load_scene, truncate};
-use crate::reference_kernel::reference_ns;
+use crate::reference_kernel::reference_for;
 use sinew_core::glam::Vec3;
 use sinew_core::{ColorScope, Solver, SolverMethod, StepTimings, SweepSchedule};
 use std::error::Error;
@@ -403,11 +403,7 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
     println!("{:<16}{:>12.4}   ({:.0} fps)", "wall", wall, 1e3 / wall);
     let ns = wall * 1e6 / work.max(1.0);
     let reference_threads = if parallel { threads } else { 1 };
-    let reference = reference_ns(
-        active.round() as usize,
-        (work / active.max(1.0)).round() as usize,
-        reference_threads,
-    );
+    let reference = reference_for(active, work, reference_threads);
     println!(
         "ns per active constraint-iteration: {ns:.2} (coloured reference sweep over as many, on {}: {reference:.2}, ratio {:.2})",
         if parallel {

@@ -156,6 +156,16 @@ pub fn reference_ns(constraints: usize, iterations: usize, threads: u32) -> f64 
     median(samples)
 }
 
+/// [`reference_ns`] for a measured frame: `active` constraints (a mean,
+/// rounded) and `work` constraint-iterations per frame, on `threads`.
+pub fn reference_for(active: f64, work: f64, threads: u32) -> f64 {
+    reference_ns(
+        active.round() as usize,
+        (work / active.max(1.0)).round() as usize,
+        threads,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,7 +14,7 @@
 
 use crate::bench::{Method, active_work, median, rayon_cores, runs_parallel, time_frames};
 use crate::commands::load_solver;
-use crate::reference_kernel::reference_ns;
+use crate::reference_kernel::reference_for;
 use serde::Serialize;
 use sinew_core::solver::coloring::{ColorPlan, PlanKind};
 use sinew_core::{Solver, SolverMethod, StepTimings};
@@ -490,11 +490,7 @@ fn result_row(
     let active = median(timed.iter().map(|f| f.active).collect());
     let work = median(timed.iter().map(|f| f.work).collect());
     let ns = wall * 1e6 / work.max(1.0);
-    let reference = reference_ns(
-        active.round() as usize,
-        (work / active.max(1.0)).round() as usize,
-        reference_threads,
-    );
+    let reference = reference_for(active, work, reference_threads);
     ResultRow {
         method: method_label(method),
         threads,

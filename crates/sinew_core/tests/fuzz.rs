@@ -158,10 +158,6 @@ fn fuzz(
     seeds: &[Vec<u8>],
     read: impl Fn(&Path),
 ) -> (u64, Vec<String>) {
-    let budget: f64 = std::env::var("SINEW_FUZZ_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(2.0);
     let dir = std::env::temp_dir().join(format!("sinew_fuzz_{}_{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let findings_dir = std::env::temp_dir().join("sinew_fuzz_findings");
@@ -169,7 +165,7 @@ fn fuzz(
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ name.len() as u64 ^ seed().rotate_left(17));
     let mut corpus: Vec<Vec<u8>> = seeds.to_vec();
     let (mut executions, mut findings) = (0u64, Vec::new());
-    let deadline = Instant::now() + Duration::from_secs_f64(budget);
+    let deadline = Instant::now() + Duration::from_secs_f64(budget());
     while Instant::now() < deadline {
         let parent = &corpus[rng.below(corpus.len())];
         let input = mutate(&mut rng, parent);
@@ -206,6 +202,15 @@ fn fuzz(
         findings.len()
     );
     (executions, findings)
+}
+
+/// `SINEW_FUZZ_SECONDS`, each harness's time budget (2 s when unset: what
+/// the test suite and CI spend).
+fn budget() -> f64 {
+    std::env::var("SINEW_FUZZ_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2.0)
 }
 
 /// `SINEW_FUZZ_SEED`, mixed into every harness's random stream (0 when
@@ -353,11 +358,7 @@ fn mjcf_reader() {
 #[test]
 fn solver_on_extreme_settings() {
     let mut rng = Rng(0x5eed ^ seed().rotate_left(17));
-    let budget: f64 = std::env::var("SINEW_FUZZ_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(2.0);
-    let deadline = Instant::now() + Duration::from_secs_f64(budget);
+    let deadline = Instant::now() + Duration::from_secs_f64(budget());
     let base = builtin("P3").unwrap();
     let mut executions = 0;
     // Log-uniform in [lo, hi].

@@ -19,9 +19,9 @@ use glam::Vec3;
 /// Most copies [`Scene::crowd`] makes.
 pub const MAX_CROWD: u32 = 1024;
 
-/// How one copy differs from the scene.
-struct Copy {
-    /// Name suffix (`#k`; empty for copy 0).
+/// How copy `k ≥ 1` differs from the scene.
+struct Placement {
+    /// Name suffix, `#k`.
     suffix: String,
     /// Where it stands relative to the scene. Units: scene units.
     offset: Vec3,
@@ -29,7 +29,7 @@ struct Copy {
     delay: f32,
 }
 
-impl Copy {
+impl Placement {
     fn name(&self, name: &str) -> String {
         format!("{name}{}", self.suffix)
     }
@@ -209,6 +209,7 @@ impl Scene {
         if !(delay.is_finite() && delay >= 0.0) {
             return Err(invalid(format!("delay {delay} s is not a finite time ≥ 0")));
         }
+        // Copy 0 is the scene itself, unchanged.
         let mut crowd = Scene {
             name: format!("{} ×{copies}", self.name),
             description: format!(
@@ -216,32 +217,14 @@ impl Scene {
                 self.name, self.description
             ),
             frames: self.frames + (delay * (copies - 1) as f32 / self.settings.dt).ceil() as u32,
-            settings: self.settings.clone(),
-            bones: Vec::new(),
-            muscles: Vec::new(),
-            skeleton: self.skeleton.as_ref().map(|_| Skeleton::default()),
-            sensors: Vec::new(),
+            ..self.clone()
         };
-        for k in 0..copies {
-            let copy = Copy {
-                suffix: if k == 0 {
-                    String::new()
-                } else {
-                    format!("#{k}")
-                },
+        for k in 1..copies {
+            let copy = Placement {
+                suffix: format!("#{k}"),
                 offset: spacing * k as f32,
                 delay: delay * k as f32,
             };
-            if k == 0 {
-                // The scene itself, unchanged.
-                crowd.bones.extend(self.bones.iter().cloned());
-                crowd.muscles.extend(self.muscles.iter().cloned());
-                crowd.sensors.extend(self.sensors.iter().cloned());
-                if let (Some(s), Some(into)) = (&self.skeleton, &mut crowd.skeleton) {
-                    *into = s.clone();
-                }
-                continue;
-            }
             crowd.bones.extend(self.bones.iter().map(|b| copy.bone(b)));
             crowd
                 .muscles
