@@ -146,6 +146,10 @@ pub struct DistanceBatch {
     pub activation: Option<ActivationRest>,
     /// Compliance α = 1/k. Units: m/N. `0` is rigid.
     pub compliance: f32,
+    /// The order a Gauss–Seidel pass projects the constraints in, set by
+    /// [`DistanceBatch::arrange_in_runs`] (runs that share no particle);
+    /// empty, or not as long as the batch: the batch's own order.
+    pub solve_order: Vec<u32>,
 }
 
 impl DistanceBatch {
@@ -159,8 +163,10 @@ impl DistanceBatch {
         self.a.is_empty()
     }
 
-    /// Adds a constraint with the given fixed rest length.
+    /// Adds a constraint with the given fixed rest length (dropping the
+    /// [`DistanceBatch::solve_order`]).
     pub fn push(&mut self, a: ParticleId, b: ParticleId, rest: f32) {
+        self.solve_order.clear();
         self.a.push(a);
         self.b.push(b);
         self.rest.push(rest);
@@ -213,6 +219,11 @@ impl ConstraintBatch for DistanceBatch {
     #[inline(always)]
     fn particles(&self, i: usize) -> Particles {
         [self.a[i], self.b[i], self.b[i]]
+    }
+
+    /// In [`DistanceBatch::solve_order`].
+    fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        self.solve_in_order(p, w, inv_dt2);
     }
 
     #[inline(always)]

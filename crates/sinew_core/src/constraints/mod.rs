@@ -33,6 +33,7 @@ mod area;
 mod distance;
 mod ids;
 mod point;
+mod runs;
 mod sliding;
 mod volume;
 
@@ -40,6 +41,7 @@ pub use area::{AreaBatch, AreaMode};
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
 pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;
+pub use runs::{OPEN_RUNS, RUN};
 pub use sliding::{SlidingBatch, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams};
 

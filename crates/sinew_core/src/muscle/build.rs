@@ -271,7 +271,9 @@ fn internal_distances(
 }
 
 /// A batch of distance constraints between `pairs` at their rest lengths,
-/// whose rest lengths follow activation when `follows_activation`.
+/// whose rest lengths follow activation when `follows_activation`, ordered
+/// in runs that share no particle ([`DistanceBatch::arrange_in_runs`]:
+/// Gauss–Seidel overlaps their projections).
 fn distances_at_rest(
     m: &Muscle,
     compliance: f32,
@@ -287,6 +289,7 @@ fn distances_at_rest(
     if follows_activation {
         batch.activation = Some(act);
     }
+    batch.arrange_in_runs();
     batch
 }
 
