@@ -12,7 +12,7 @@
 //! Arguments: scene (file or built-in name), threads, first timed frame,
 //! timed frames.
 
-use sinew_core::scene::{Scene, builtin};
+use sinew_core::scene::{BUILTIN_SCENES, Scene, builtin};
 use sinew_core::solver::Solver;
 use std::error::Error;
 use std::path::Path;
@@ -28,13 +28,20 @@ fn main() -> Result<(), Box<dyn Error>> {
     if frames == 0 {
         return Err("FRAMES must be at least 1".into());
     }
-    let (mut spec, base) = match builtin(scene) {
-        Some(spec) => (spec, Path::new(".").to_path_buf()),
-        None => {
-            let path = Path::new(scene);
-            let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-            (Scene::load(path)?, base)
-        }
+    // As the CLI reads a scene argument (`load_scene`): a `.ron` or an
+    // existing path is a file, anything else a built-in name.
+    let path = Path::new(scene);
+    let (mut spec, base) = if path.extension().is_some_and(|e| e == "ron") || path.exists() {
+        let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        (Scene::load(path)?, base)
+    } else {
+        let spec = builtin(scene).ok_or_else(|| {
+            format!(
+                "'{scene}' is neither a scene file nor a built-in scene ({})",
+                BUILTIN_SCENES.join(", ")
+            )
+        })?;
+        (spec, Path::new(".").to_path_buf())
     };
     spec.settings.threads = threads;
     let mut in_runs = spec.instantiate(&base)?;
