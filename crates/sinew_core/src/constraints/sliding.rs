@@ -88,6 +88,11 @@ pub struct SlidingBatch {
     /// Where each constraint's run of `candidates` starts; one more entry
     /// than constraints.
     pub candidate_start: Vec<u32>,
+    /// The rest gap of each entry of `candidates` (`rest_gap` of that
+    /// constraint and slot), beside it: closest data reads a vertex's
+    /// gaps from one place instead of from a row of `targets` cells (a
+    /// skin's rows are hundreds of targets wide). Units: m.
+    pub candidate_gap: Vec<f32>,
     /// Whether the vertex connects at all: some target lies within reach
     /// ([`crate::muscle::MuscleParams::contact_reach`] for muscles, any gap
     /// for bones). A vertex out of reach keeps its constraints, switched off.
@@ -95,14 +100,18 @@ pub struct SlidingBatch {
 }
 
 impl SlidingBatch {
-    /// Rebuilds [`Self::candidates`] from the rest gaps.
+    /// Rebuilds [`Self::candidates`] and [`Self::candidate_gap`] from the
+    /// rest gaps.
     pub fn index_candidates(&mut self) {
         self.candidates.clear();
+        self.candidate_gap.clear();
         self.candidate_start.clear();
         self.candidate_start.push(0);
         for row in self.rest_gap.chunks(self.targets.max(1)) {
-            let slots = row.iter().enumerate().filter(|(_, g)| g.is_finite());
-            self.candidates.extend(slots.map(|(slot, _)| slot as u32));
+            for (slot, &gap) in row.iter().enumerate().filter(|(_, g)| g.is_finite()) {
+                self.candidates.push(slot as u32);
+                self.candidate_gap.push(gap);
+            }
             self.candidate_start.push(self.candidates.len() as u32);
         }
     }
@@ -215,5 +224,26 @@ impl ConstraintBatch for SlidingBatch {
         }
         x += g * (w * dl);
         Some(Correction::one(dl, x))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each candidate's gap is its constraint's rest gap on that slot, and
+    /// slots out of reach (infinite gaps) are not candidates.
+    #[test]
+    fn candidate_gaps_sit_beside_their_slots() {
+        let inf = f32::INFINITY;
+        let mut s = SlidingBatch {
+            targets: 3,
+            rest_gap: vec![0.1, inf, 0.3, inf, inf, inf, inf, 0.2, 0.0],
+            ..Default::default()
+        };
+        s.index_candidates();
+        assert_eq!(s.candidate_start, [0, 2, 2, 4]);
+        assert_eq!(s.candidates, [0, 2, 1, 2]);
+        assert_eq!(s.candidate_gap, [0.1, 0.3, 0.2, 0.0]);
     }
 }

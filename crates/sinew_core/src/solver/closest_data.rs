@@ -1,17 +1,16 @@
 //! Closest data (BE5, SPEC §6): for every Sliding constraint the closest
 //! point on the target it slides on, and the current goals of Soft and Hard
-//! on their rest triangles; and the bone contacts, which put back on the
-//! surface a vertex that ended an iteration inside one of its muscle's bones.
-//! Both read the targets through [`TargetSet`] (the driver's table indexed
-//! by [`MuscleWorkspace::target_ids`]) and keep their caches in the
-//! workspace.
+//! on their rest triangles. It reads the targets through [`TargetSet`] (the
+//! driver's table indexed by [`MuscleWorkspace::target_ids`]) and keeps its
+//! caches in the workspace. The bone contacts that end an iteration are in
+//! [`super::bone_contacts`].
 
 use super::params::ClosestSchedule;
 use super::workspace::MuscleWorkspace;
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use crate::constraints::{ParticleId, TargetId, TargetSlot};
 use crate::muscle::Muscle;
-use glam::{Vec3, Vec3A, Vec4};
+use glam::Vec3;
 
 /// Sliding constraints per parallel chunk of the closest-data block (a few
 /// hundred ns each, so a chunk is worth a fork and join).
@@ -92,6 +91,8 @@ struct SlidingRun<'a> {
     /// its constraints), into the whole `candidates`.
     candidate_start: &'a [u32],
     candidates: &'a [u32],
+    /// The batch's `candidate_gap`, beside `candidates`.
+    candidate_gap: &'a [f32],
 }
 
 impl<'a> SlidingRun<'a> {
@@ -111,22 +112,15 @@ impl<'a> SlidingRun<'a> {
             warm,
             candidate_start: &s.candidate_start,
             candidates: &s.candidates,
+            candidate_gap: &s.candidate_gap,
         }
     }
 
     /// Runs `f` on runs of at most `k` constraints, in parallel on the
-    /// current rayon pool (halving at a multiple of `k`, so nothing is
-    /// allocated); `targets` warm cells per constraint.
+    /// current rayon pool; `targets` warm cells per constraint.
     fn for_each_chunk(self, k: usize, targets: usize, f: &(impl Fn(SlidingRun) + Sync)) {
         let n = self.particle.len();
-        if n <= k {
-            return f(self);
-        }
-        let (head, tail) = self.split_at(n.div_ceil(k) / 2 * k, targets);
-        rayon::join(
-            || head.for_each_chunk(k, targets, f),
-            || tail.for_each_chunk(k, targets, f),
-        );
+        for_each_piece(self, n, k, &|run: Self, at| run.split_at(at, targets), f);
     }
 
     /// The first `at` constraints and the rest.
@@ -160,6 +154,7 @@ impl<'a> SlidingRun<'a> {
                 warm,
                 candidate_start,
                 candidates: self.candidates,
+                candidate_gap: self.candidate_gap,
             },
             Self {
                 particle: particle_b,
@@ -175,6 +170,7 @@ impl<'a> SlidingRun<'a> {
                 warm: warm_b,
                 candidate_start: candidate_start_b,
                 candidates: self.candidates,
+                candidate_gap: self.candidate_gap,
             },
         )
     }
@@ -209,6 +205,29 @@ impl Claim {
     }
 }
 
+/// Runs `f` on pieces of `run` (of `len` items) of at most `k` items each,
+/// in parallel on the current rayon pool: `split(run, at)` cuts a piece
+/// into its first `at` items and the rest, halving at a multiple of `k`,
+/// so nothing is allocated. Each item's work must touch only its own
+/// cells: the pieces then give the same bits for any thread count.
+pub(super) fn for_each_piece<R: Send>(
+    run: R,
+    len: usize,
+    k: usize,
+    split: &(impl Fn(R, usize) -> (R, R) + Sync),
+    f: &(impl Fn(R) + Sync),
+) {
+    if len <= k {
+        return f(run);
+    }
+    let at = len.div_ceil(k) / 2 * k;
+    let (head, tail) = split(run, at);
+    rayon::join(
+        || for_each_piece(head, at, k, split, f),
+        || for_each_piece(tail, len - at, k, split, f),
+    );
+}
+
 /// What the Sliding part of closest data reads.
 struct SlidingInput<'a, T: ?Sized> {
     p: &'a [Vec3],
@@ -240,6 +259,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             warm,
             candidate_start,
             candidates,
+            candidate_gap,
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
         for i in 0..particle.len() {
@@ -264,17 +284,21 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // first iteration of a frame, still checks every bone whose box
             // it is in (it may have entered one).
             let bones_only = !choose;
-            let within = &candidates[candidate_start[i] as usize..candidate_start[i + 1] as usize];
-            let order = (first < nt).then_some(first).into_iter().chain(
-                within
-                    .iter()
-                    .map(|&s| s as usize)
-                    .filter(move |&s| (choose || search.first_of_frame) && s != first),
-            );
+            let run = candidate_start[i] as usize..candidate_start[i + 1] as usize;
+            let within = candidates[run.clone()].iter().map(|&s| s as usize);
+            let within = within.zip(candidate_gap[run].iter().copied());
+            // The held target's gap, beside its candidate entry (or, out of
+            // its contact band, from the row).
+            let held = (first < nt).then(|| {
+                let mut row = within.clone();
+                let gap = row.find(|&(s, _)| s == first).map(|(_, g)| g);
+                (first, gap.unwrap_or_else(|| rest_gap[i * nt + first]))
+            });
+            let others = (choose || search.first_of_frame).then_some(within);
+            let others = others.into_iter().flatten().filter(|&(s, _)| s != first);
             let full = search.wants(v);
             let mut best: Option<(Claim, ClosestHit, usize)> = None;
-            for slot in order {
-                let gap = rest_gap[i * nt + slot];
+            for (slot, gap) in held.into_iter().chain(others) {
                 let surface = self.targets.target(self.target_ids[slot]);
                 // A target out of the vertex's contact band at rest (or
                 // across a seam, see `link_muscle`) is never chosen.
@@ -343,104 +367,5 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 None => target[i] = TargetSlot::NONE,
             }
         }
-    }
-}
-
-/// In each iteration, after the projections (before a trailing Volume), puts
-/// every surface vertex that ended up inside one of its muscle's bone targets
-/// (and was outside it at rest) back on the bone's surface: bones do not give
-/// way, whatever the soft constraints solved after Sliding did. Each bone is
-/// checked only for vertices inside its bounding box, from the last closest
-/// triangle (a walk), and not at all while the vertex stays within its last
-/// known clearance of where it had it (the workspace's clearance cells). Bones do not
-/// move within a substep, so after its first iteration (`first_of_substep`) a
-/// vertex that stayed within the smallest of its cells' remaining clearances
-/// (the workspace's bone margin) skips every cell at once: the cells would all
-/// have been skipped.
-pub fn bone_contacts<T: TargetSet + ?Sized>(
-    m: &mut Muscle,
-    ws: &mut MuscleWorkspace,
-    targets: &T,
-    first_of_substep: bool,
-) {
-    let nt = ws.target_ids.len();
-    let c = &m.constraints.sliding;
-    if nt == 0 || !c.rigid.iter().any(|&r| r) {
-        return;
-    }
-    // The bones' world boxes, packed (bones are posed once per substep): a
-    // vertex outside a bone's box by `d` is at least `d` from the bone, a
-    // test that reads a few bytes instead of the target (a skin vertex has
-    // every bone of the body as a target).
-    if first_of_substep || ws.bone_boxes.is_empty() {
-        let boxes = (0..nt).filter(|&s| c.rigid[s]).filter_map(|s| {
-            let (lo, hi) = targets.target(ws.target_ids[s]).world_box()?;
-            Some((s, lo, hi))
-        });
-        ws.bone_boxes.clear();
-        ws.bone_boxes.extend(boxes);
-    }
-    for i in 0..c.len() {
-        let v = c.particle[i].index();
-        if m.w[v] == 0.0 {
-            continue;
-        }
-        let anchor = ws.bone_margin[i];
-        if !first_of_substep && m.p[v].distance_squared(anchor.truncate()) < anchor.w * anchor.w {
-            continue;
-        }
-        // The smallest remaining clearance over this vertex's bones.
-        let mut margin = f32::INFINITY;
-        let q = Vec3A::from(m.p[v]);
-        for b in 0..ws.bone_boxes.len() {
-            let (slot, lo, hi) = ws.bone_boxes[b];
-            let cell = i * nt + slot;
-            if !c.rest_outside[cell] {
-                continue;
-            }
-            let outside_box = (lo - q).max(q - hi).max(Vec3A::ZERO).length();
-            if outside_box > 0.0 {
-                margin = margin.min(outside_box);
-                continue;
-            }
-            let target = targets.target(ws.target_ids[slot]);
-            let local = target.to_local(m.p[v]);
-            let known = ws.clearance[cell];
-            let moved2 = local.distance_squared(known.truncate());
-            if moved2 < known.w * known.w {
-                margin = margin.min(known.w - moved2.sqrt());
-                continue;
-            }
-            let lower = target.lower_bound_local(local);
-            if lower > 0.0 {
-                ws.clearance[cell] = local.extend(lower);
-                margin = margin.min(lower);
-                continue;
-            }
-            let last = &mut ws.warm[cell];
-            let q = m.p[v];
-            let hit = match *last {
-                NO_TRIANGLE => target.closest_within(q, None, f32::INFINITY),
-                t => target.walk(q, t),
-            };
-            margin = 0.0;
-            if let Some(hit) = hit {
-                *last = hit.triangle;
-                if hit.signed_distance < 0.0 {
-                    m.p[v] -= hit.normal * hit.signed_distance;
-                    ws.clearance[cell] = Vec4::ZERO;
-                } else {
-                    ws.clearance[cell] = local.extend(hit.distance);
-                }
-            }
-        }
-        // A little less than the exact margin, so that rounding never skips
-        // a cell the per-cell test would have checked.
-        let margin = if margin.is_finite() {
-            (margin * (1.0 - 1e-3) - 1e-6 * m.length_unit).max(0.0)
-        } else {
-            f32::INFINITY
-        };
-        ws.bone_margin[i] = m.p[v].extend(margin);
     }
 }

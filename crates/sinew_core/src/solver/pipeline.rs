@@ -22,7 +22,7 @@
 //! table, which [`MuscleWorkspace::target_ids`] index in the muscle's own
 //! target order.
 
-use super::closest_data::bone_contacts;
+use super::bone_contacts::bone_contacts;
 use super::coloring::{ColorPlan, PlanKind};
 use super::jacobi::{self, JacobiState};
 use super::momentum;
@@ -176,7 +176,7 @@ fn jacobi_for<'w>(
 /// The end of an iteration's projection: Hybrid's Jacobi tail, a Volume
 /// that a coloured or Jacobi pass left out from the middle of the order,
 /// the bone contacts, then a trailing Volume.
-pub fn finish<T: TargetSet + ?Sized>(
+pub fn finish<T: TargetSet + Sync + ?Sized>(
     m: &mut Muscle,
     ws: &mut MuscleWorkspace,
     targets: &T,
@@ -193,7 +193,7 @@ pub fn finish<T: TargetSet + ?Sized>(
             project_volume(m, inv_h2, split);
         }
     }
-    bone_contacts(m, ws, targets, p.first_of_substep());
+    bone_contacts(m, ws, targets, p.first_of_substep(), split);
     if trailing {
         project_volume(m, inv_h2, split);
     }

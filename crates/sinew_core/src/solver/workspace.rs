@@ -21,7 +21,7 @@ use super::momentum::RigidMomentum;
 use crate::closest::NO_TRIANGLE;
 use crate::constraints::TargetId;
 use crate::muscle::Muscle;
-use glam::{Vec3A, Vec4};
+use glam::{Vec3, Vec3A, Vec4};
 
 /// A muscle's solver state (module docs).
 #[derive(Clone, Debug, Default)]
@@ -50,6 +50,10 @@ pub struct MuscleWorkspace {
     /// slot, min, max)`: rebuilt in a substep's first iteration (bones are
     /// posed once per substep) and after a relink (emptied).
     pub(crate) bone_boxes: Vec<(usize, Vec3A, Vec3A)>,
+    /// Bone contacts' position of each Sliding constraint's vertex after
+    /// its check, written back to the muscle once every vertex is checked
+    /// (the checks run in parallel chunks).
+    pub(crate) bone_settled: Vec<Vec3>,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
     pub(crate) plan: Option<(u64, ColorPlan)>,

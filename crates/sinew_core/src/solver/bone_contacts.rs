@@ -1,0 +1,327 @@
+//! Bone contacts: in each iteration, after the projections (before a
+//! trailing Volume), every surface vertex that ended up inside one of its
+//! muscle's bone targets (and was outside it at rest) is put back on the
+//! bone's surface: bones do not give way, whatever the soft constraints
+//! solved after Sliding did.
+//!
+//! Each bone is checked only for vertices inside its bounding box, from the
+//! last closest triangle (a walk), and not at all while the vertex stays
+//! within its last known clearance of where it had it (the workspace's
+//! clearance cells). Bones do not move within a substep, so after its first
+//! iteration a vertex that stayed within the smallest of its cells'
+//! remaining clearances (the workspace's bone margin) skips every cell at
+//! once: the cells would all have been skipped.
+//!
+//! A vertex's check reads and writes only its own position and cells, so a
+//! large muscle (a skin over a whole body: 13k vertices, every bone a
+//! target) checks its vertices in chunks on the pool, each chunk writing
+//! the positions it settles into the workspace, and the positions are then
+//! written back in order: the same bits for any thread count.
+
+use super::closest_data::{CLOSEST_CHUNK, for_each_piece};
+use super::workspace::MuscleWorkspace;
+use crate::closest::{NO_TRIANGLE, TargetSet};
+use crate::constraints::{ParticleId, TargetId};
+use crate::muscle::Muscle;
+use glam::{Vec3, Vec3A, Vec4};
+
+/// Puts every vertex of `m` that is inside one of its bones back on the
+/// bone's surface (module docs); `first_of_substep`: the bones were just
+/// posed. With `split` a large muscle's vertices are checked in chunks of
+/// [`CLOSEST_CHUNK`] on the current rayon pool.
+pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    first_of_substep: bool,
+    split: bool,
+) {
+    let nt = ws.target_ids.len();
+    let c = &m.constraints.sliding;
+    if nt == 0 || !c.rigid.iter().any(|&r| r) {
+        return;
+    }
+    // The bones' world boxes, packed (bones are posed once per substep): a
+    // vertex outside a bone's box by `d` is at least `d` from the bone, a
+    // test that reads a few bytes instead of the target (a skin vertex has
+    // every bone of the body as a target).
+    if first_of_substep || ws.bone_boxes.is_empty() {
+        let boxes = (0..nt).filter(|&s| c.rigid[s]).filter_map(|s| {
+            let (lo, hi) = targets.target(ws.target_ids[s]).world_box()?;
+            Some((s, lo, hi))
+        });
+        ws.bone_boxes.clear();
+        ws.bone_boxes.extend(boxes);
+    }
+    let input = ContactInput {
+        p: &m.p,
+        w: &m.w,
+        boxes: &ws.bone_boxes,
+        target_ids: &ws.target_ids,
+        targets,
+        first_of_substep,
+        length_unit: m.length_unit,
+    };
+    let n = c.len();
+    ws.bone_settled.resize(n, Vec3::ZERO);
+    let run = ContactRun {
+        particle: &c.particle,
+        rest_outside: &c.rest_outside,
+        warm: &mut ws.warm,
+        clearance: &mut ws.clearance,
+        margin: &mut ws.bone_margin,
+        settled: &mut ws.bone_settled,
+        targets: nt,
+    };
+    if split && n > CLOSEST_CHUNK {
+        let check = |run| input.check(run);
+        for_each_piece(run, n, CLOSEST_CHUNK, &ContactRun::split_at, &check);
+    } else {
+        input.check(run);
+    }
+    for (id, x) in c.particle.iter().zip(&ws.bone_settled) {
+        m.p[id.index()] = *x;
+    }
+}
+
+/// What every vertex's check reads.
+struct ContactInput<'a, T: ?Sized> {
+    p: &'a [Vec3],
+    w: &'a [f32],
+    /// The bones' packed world boxes: `(target slot, min, max)`.
+    boxes: &'a [(usize, Vec3A, Vec3A)],
+    target_ids: &'a [TargetId],
+    targets: &'a T,
+    first_of_substep: bool,
+    /// The muscle's length unit (the margin's rounding allowance).
+    length_unit: f32,
+}
+
+/// A run of Sliding constraints' bone-contact cells: the batch's slices
+/// for the run and the workspace's, `targets` cells per constraint.
+struct ContactRun<'a> {
+    particle: &'a [ParticleId],
+    rest_outside: &'a [bool],
+    warm: &'a mut [u32],
+    clearance: &'a mut [Vec4],
+    margin: &'a mut [Vec4],
+    /// Each vertex's position after the check (written back afterwards).
+    settled: &'a mut [Vec3],
+    targets: usize,
+}
+
+impl<'a> ContactRun<'a> {
+    /// The first `at` constraints and the rest.
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let cells = at * self.targets;
+        let (particle, particle_b) = self.particle.split_at(at);
+        let (rest_outside, rest_outside_b) = self.rest_outside.split_at(cells);
+        let (warm, warm_b) = self.warm.split_at_mut(cells);
+        let (clearance, clearance_b) = self.clearance.split_at_mut(cells);
+        let (margin, margin_b) = self.margin.split_at_mut(at);
+        let (settled, settled_b) = self.settled.split_at_mut(at);
+        let targets = self.targets;
+        (
+            Self {
+                particle,
+                rest_outside,
+                warm,
+                clearance,
+                margin,
+                settled,
+                targets,
+            },
+            Self {
+                particle: particle_b,
+                rest_outside: rest_outside_b,
+                warm: warm_b,
+                clearance: clearance_b,
+                margin: margin_b,
+                settled: settled_b,
+                targets,
+            },
+        )
+    }
+}
+
+impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
+    /// Checks a run's vertices against their bones.
+    fn check(&self, run: ContactRun) {
+        let nt = run.targets;
+        for (i, id) in run.particle.iter().enumerate() {
+            let v = id.index();
+            let mut x = self.p[v];
+            run.settled[i] = x;
+            if self.w[v] == 0.0 {
+                continue;
+            }
+            let anchor = run.margin[i];
+            if !self.first_of_substep && x.distance_squared(anchor.truncate()) < anchor.w * anchor.w
+            {
+                continue;
+            }
+            // The smallest remaining clearance over this vertex's bones.
+            let mut margin = f32::INFINITY;
+            let q = Vec3A::from(x);
+            for &(slot, lo, hi) in self.boxes {
+                let cell = i * nt + slot;
+                if !run.rest_outside[cell] {
+                    continue;
+                }
+                let outside_box = (lo - q).max(q - hi).max(Vec3A::ZERO).length();
+                if outside_box > 0.0 {
+                    margin = margin.min(outside_box);
+                    continue;
+                }
+                let target = self.targets.target(self.target_ids[slot]);
+                let local = target.to_local(x);
+                let known = run.clearance[cell];
+                let moved2 = local.distance_squared(known.truncate());
+                if moved2 < known.w * known.w {
+                    margin = margin.min(known.w - moved2.sqrt());
+                    continue;
+                }
+                let lower = target.lower_bound_local(local);
+                if lower > 0.0 {
+                    run.clearance[cell] = local.extend(lower);
+                    margin = margin.min(lower);
+                    continue;
+                }
+                let last = &mut run.warm[cell];
+                let hit = match *last {
+                    NO_TRIANGLE => target.closest_within(x, None, f32::INFINITY),
+                    t => target.walk(x, t),
+                };
+                margin = 0.0;
+                if let Some(hit) = hit {
+                    *last = hit.triangle;
+                    if hit.signed_distance < 0.0 {
+                        x -= hit.normal * hit.signed_distance;
+                        run.clearance[cell] = Vec4::ZERO;
+                    } else {
+                        run.clearance[cell] = local.extend(hit.distance);
+                    }
+                }
+            }
+            // A little less than the exact margin, so that rounding never
+            // skips a cell the per-cell test would have checked.
+            let margin = if margin.is_finite() {
+                (margin * (1.0 - 1e-3) - 1e-6 * self.length_unit).max(0.0)
+            } else {
+                f32::INFINITY
+            };
+            run.margin[i] = x.extend(margin);
+            run.settled[i] = x;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::animation::TransformTrack;
+    use crate::mesh::primitives::MeshGenerator;
+    use crate::muscle::{MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
+    use crate::{Solver, SolverSettings};
+
+    /// A surface layer of 738 vertices (more than [`CLOSEST_CHUNK`], so it
+    /// is checked in chunks) around a bar-shaped bone, linked by one step.
+    fn layer_around_a_bar() -> Solver {
+        let mut solver = Solver::new(SolverSettings::default()).unwrap();
+        let bar = MeshGenerator::Box {
+            center: Vec3::ZERO,
+            size: Vec3::new(0.02, 0.2, 0.02),
+            divisions: [2, 10, 2],
+        }
+        .build("bar")
+        .unwrap();
+        let bone = solver.add_bone("bar", TransformTrack::default(), Some(&bar));
+        let layer = MeshGenerator::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::new(0.03, 0.12, 0.03),
+            segments: 32,
+            stacks: 24,
+        }
+        .build("layer")
+        .unwrap();
+        solver
+            .add_muscle(MuscleDesc {
+                name: "layer".into(),
+                mesh: layer,
+                roots: Roots::Vertices(Vec::new()),
+                attachments: Vec::new(),
+                targets: vec![TargetRef::Bone(bone)],
+                params: MuscleParams::surface_layer(1.1, 0.01),
+                maps: VertexMaps::default(),
+                binding: None,
+            })
+            .unwrap();
+        solver.step();
+        solver
+    }
+
+    /// Every vertex pulled to a fifth of its distance from the bar's axis:
+    /// most end up inside the bar. Checked once in one pass and once in
+    /// chunks on four threads: the same bits, every vertex inside moved and
+    /// the deepest brought near the surface (one check pushes along the
+    /// interpolated normal, which at the bar's edges is not the way out),
+    /// and a later iteration (margins in use) the same.
+    #[test]
+    fn chunks_push_the_same_vertices_out_as_one_pass() {
+        let solver = layer_around_a_bar();
+        let (targets, bar) = (solver.targets.as_slice(), &solver.targets[0]);
+        let (mut m, ws) = (solver.muscles[0].clone(), solver.workspaces[0].clone());
+        assert!(m.constraints.sliding.len() > 2 * CLOSEST_CHUNK);
+        for p in &mut m.p {
+            *p = Vec3::new(p.x * 0.2, p.y, p.z * 0.2);
+        }
+        let depth = |p: &Vec3| {
+            -bar.closest_within(*p, None, f32::INFINITY)
+                .unwrap()
+                .signed_distance
+        };
+        let deepest = |m: &Muscle| m.p.iter().map(depth).fold(0.0, f32::max);
+        let inside: Vec<bool> = m.p.iter().map(|p| depth(p) > 1e-6).collect();
+        let before = deepest(&m);
+        assert!(inside.iter().filter(|&&i| i).count() > 300 && before > 5e-3);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(4)
+            .build()
+            .unwrap();
+        let bits = |m: &Muscle| -> Vec<u32> {
+            m.p.iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        let (mut one, mut one_ws) = (m.clone(), ws.clone());
+        let (mut chunked, mut chunked_ws) = (m.clone(), ws.clone());
+        for first_of_substep in [true, false] {
+            let start = chunked.p.clone();
+            bone_contacts(&mut one, &mut one_ws, targets, first_of_substep, false);
+            pool.install(|| {
+                bone_contacts(
+                    &mut chunked,
+                    &mut chunked_ws,
+                    targets,
+                    first_of_substep,
+                    true,
+                )
+            });
+            assert_eq!(
+                bits(&one),
+                bits(&chunked),
+                "first of substep: {first_of_substep}"
+            );
+            let pushed = start.iter().zip(&chunked.p).map(|(a, b)| a != b);
+            let missed = pushed
+                .zip(&start)
+                .filter(|(moved, p)| !moved && depth(p) > 1e-6);
+            assert_eq!(missed.count(), 0, "a vertex inside the bar was not pushed");
+            assert!(deepest(&chunked) < 0.25 * before, "{}", deepest(&chunked));
+            // The next check starts from moved vertices.
+            for p in one.p.iter_mut().chain(chunked.p.iter_mut()).step_by(3) {
+                p.x *= 0.5;
+            }
+        }
+    }
+}
