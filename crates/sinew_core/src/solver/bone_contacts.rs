@@ -52,11 +52,20 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         });
         ws.bone_boxes.clear();
         ws.bone_boxes.extend(boxes);
+        ws.bone_groups.clear();
+        let groups = ws.bone_boxes.chunks(BOX_GROUP).scan(0, |end, group| {
+            *end += group.len();
+            let lo = group.iter().fold(Vec3A::INFINITY, |lo, b| lo.min(b.1));
+            let hi = group.iter().fold(Vec3A::NEG_INFINITY, |hi, b| hi.max(b.2));
+            Some((*end, lo, hi))
+        });
+        ws.bone_groups.extend(groups);
     }
     let input = ContactInput {
         p: &m.p,
         w: &m.w,
         boxes: &ws.bone_boxes,
+        groups: &ws.bone_groups,
         target_ids: &ws.target_ids,
         targets,
         first_of_substep,
@@ -84,12 +93,24 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
     }
 }
 
+/// Bone boxes per group of [`MuscleWorkspace::bone_groups`]: a skin
+/// vertex tests the boxes of the groups near it only (a group of
+/// consecutive bones, a hand's or a leg's, lies together).
+const BOX_GROUP: usize = 8;
+
+/// Distance from `q` to the box `[lo, hi]` (0 inside).
+fn box_distance(q: Vec3A, lo: Vec3A, hi: Vec3A) -> f32 {
+    (lo - q).max(q - hi).max(Vec3A::ZERO).length()
+}
+
 /// What every vertex's check reads.
 struct ContactInput<'a, T: ?Sized> {
     p: &'a [Vec3],
     w: &'a [f32],
     /// The bones' packed world boxes: `(target slot, min, max)`.
     boxes: &'a [(usize, Vec3A, Vec3A)],
+    /// `boxes` in consecutive groups: `(end, min, max)`.
+    groups: &'a [(usize, Vec3A, Vec3A)],
     target_ids: &'a [TargetId],
     targets: &'a T,
     first_of_substep: bool,
@@ -163,43 +184,53 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
             // The smallest remaining clearance over this vertex's bones.
             let mut margin = f32::INFINITY;
             let q = Vec3A::from(x);
-            for &(slot, lo, hi) in self.boxes {
-                let cell = i * nt + slot;
-                if !run.rest_outside[cell] {
+            let mut start = 0;
+            for &(end, lo, hi) in self.groups {
+                let group = std::mem::replace(&mut start, end)..end;
+                // A group the vertex is outside of by at least the margin
+                // so far holds no box that contains it or lowers the margin.
+                let outside = box_distance(q, lo, hi);
+                if outside > 0.0 && outside >= margin {
                     continue;
                 }
-                let outside_box = (lo - q).max(q - hi).max(Vec3A::ZERO).length();
-                if outside_box > 0.0 {
-                    margin = margin.min(outside_box);
-                    continue;
-                }
-                let target = self.targets.target(self.target_ids[slot]);
-                let local = target.to_local(x);
-                let known = run.clearance[cell];
-                let moved2 = local.distance_squared(known.truncate());
-                if moved2 < known.w * known.w {
-                    margin = margin.min(known.w - moved2.sqrt());
-                    continue;
-                }
-                let lower = target.lower_bound_local(local);
-                if lower > 0.0 {
-                    run.clearance[cell] = local.extend(lower);
-                    margin = margin.min(lower);
-                    continue;
-                }
-                let last = &mut run.warm[cell];
-                let hit = match *last {
-                    NO_TRIANGLE => target.closest_within(x, None, f32::INFINITY),
-                    t => target.walk(x, t),
-                };
-                margin = 0.0;
-                if let Some(hit) = hit {
-                    *last = hit.triangle;
-                    if hit.signed_distance < 0.0 {
-                        x -= hit.normal * hit.signed_distance;
-                        run.clearance[cell] = Vec4::ZERO;
-                    } else {
-                        run.clearance[cell] = local.extend(hit.distance);
+                for &(slot, lo, hi) in &self.boxes[group] {
+                    let cell = i * nt + slot;
+                    if !run.rest_outside[cell] {
+                        continue;
+                    }
+                    let outside_box = box_distance(q, lo, hi);
+                    if outside_box > 0.0 {
+                        margin = margin.min(outside_box);
+                        continue;
+                    }
+                    let target = self.targets.target(self.target_ids[slot]);
+                    let local = target.to_local(x);
+                    let known = run.clearance[cell];
+                    let moved2 = local.distance_squared(known.truncate());
+                    if moved2 < known.w * known.w {
+                        margin = margin.min(known.w - moved2.sqrt());
+                        continue;
+                    }
+                    let lower = target.lower_bound_local(local);
+                    if lower > 0.0 {
+                        run.clearance[cell] = local.extend(lower);
+                        margin = margin.min(lower);
+                        continue;
+                    }
+                    let last = &mut run.warm[cell];
+                    let hit = match *last {
+                        NO_TRIANGLE => target.closest_within(x, None, f32::INFINITY),
+                        t => target.walk(x, t),
+                    };
+                    margin = 0.0;
+                    if let Some(hit) = hit {
+                        *last = hit.triangle;
+                        if hit.signed_distance < 0.0 {
+                            x -= hit.normal * hit.signed_distance;
+                            run.clearance[cell] = Vec4::ZERO;
+                        } else {
+                            run.clearance[cell] = local.extend(hit.distance);
+                        }
                     }
                 }
             }

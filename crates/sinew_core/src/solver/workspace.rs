@@ -50,6 +50,9 @@ pub struct MuscleWorkspace {
     /// slot, min, max)`: rebuilt in a substep's first iteration (bones are
     /// posed once per substep) and after a relink (emptied).
     pub(crate) bone_boxes: Vec<(usize, Vec3A, Vec3A)>,
+    /// `bone_boxes` in consecutive groups, `(end, min, max)`: each group's
+    /// entries end at `end` (exclusive) and its box holds their boxes.
+    pub(crate) bone_groups: Vec<(usize, Vec3A, Vec3A)>,
     /// Bone contacts' position of each Sliding constraint's vertex after
     /// its check, written back to the muscle once every vertex is checked
     /// (the checks run in parallel chunks).
@@ -78,6 +81,7 @@ impl MuscleWorkspace {
         self.bone_margin
             .resize(m.constraints.sliding.len(), Vec4::ZERO);
         self.bone_boxes.clear();
+        self.bone_groups.clear();
     }
 
     /// The colour plan in use, if any (for reports and debug views).
