@@ -213,6 +213,49 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
     }
 }
 
+/// `Sequential` projects a surface layer in its colour groups' order, in
+/// chunks on the threads: a 40 × 40 skin over P1's oval gives the same bits
+/// on 1 and 4 threads, its plan splits a colour, and the muscle under it
+/// keeps its plain Gauss–Seidel pass (no plan).
+#[test]
+fn sequential_splits_a_surface_layer_by_colour_with_the_same_bits() {
+    use crate::mesh::primitives::MeshGenerator;
+    use crate::muscle::MuscleParams;
+    use crate::scene::{MeshSource, MuscleSpec};
+    let run = |threads| {
+        let mut scene = builtin("P1").unwrap();
+        scene.muscles.push(MuscleSpec {
+            name: "skin".into(),
+            mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
+                center: Vec3::ZERO,
+                radii: Vec3::new(0.064, 0.029, 0.029),
+                segments: 40,
+                stacks: 40,
+            }),
+            targets: vec!["oval".into()],
+            params: MuscleParams::surface_layer(2.2, 0.01),
+            ..Default::default()
+        });
+        scene.settings.threads = threads;
+        scene.settings.parallel_threshold = 0;
+        scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+        for _ in 0..5 {
+            s.step();
+        }
+        assert!(s.workspaces()[0].plan().is_none(), "the muscle has a plan");
+        let plan = s.workspaces()[1].plan().expect("the layer's colour plan");
+        let chunks = (0..plan.color_count()).map(|c| plan.chunk_count(c)).max();
+        assert!(chunks > Some(1), "no colour of the layer was split");
+        s.muscles()[1]
+            .x
+            .iter()
+            .flat_map(|p| p.to_array().map(f32::to_bits))
+            .collect::<Vec<u32>>()
+    };
+    assert_eq!(run(1), run(4));
+}
+
 #[test]
 fn a_plan_is_rebuilt_when_a_constraint_moves_other_particles() {
     let mut scene = builtin("P1").unwrap();

@@ -115,12 +115,17 @@ pub fn closest<T: TargetSet + Sync + ?Sized>(
 }
 
 /// The method's pass over every constraint of `m` but those [`finish`]
-/// runs: Gauss–Seidel in the projection order, the colour plan's sweeps,
-/// or the Jacobi pass.
+/// runs: Gauss–Seidel in the projection order (a surface layer's in its
+/// greedy colour groups' order, see [`SolverMethod::Sequential`]), the
+/// colour plan's sweeps, or the Jacobi pass.
 pub fn sweep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &IterationParams) {
     let f = &p.substep.frame;
     let (order, inv_h2, split) = (f.order.as_slice(), p.substep.inv_h2, f.parallelism.muscles);
     match f.method {
+        SolverMethod::Sequential if m.params.is_surface_layer() => {
+            let plan = plan_of_kind(m, ws, p, PlanKind::PerConstraint);
+            sweep::sweep_muscle(m, plan.sweep(), inv_h2, split);
+        }
         SolverMethod::Sequential => gauss_seidel(m, split_volume(order).0, inv_h2),
         SolverMethod::Colored { .. } | SolverMethod::Hybrid { .. } => {
             let plan = plan_for(m, ws, p);
@@ -143,8 +148,18 @@ pub fn plan_for<'w>(
     ws: &'w mut MuscleWorkspace,
     p: &IterationParams,
 ) -> &'w mut ColorPlan {
+    let (kind, _) = plan_kind(p.substep.frame.method).expect("a coloured method");
+    plan_of_kind(m, ws, p, kind)
+}
+
+/// [`plan_for`] with the plan's kind given.
+fn plan_of_kind<'w>(
+    m: &Muscle,
+    ws: &'w mut MuscleWorkspace,
+    p: &IterationParams,
+    kind: PlanKind,
+) -> &'w mut ColorPlan {
     let f = &p.substep.frame;
-    let (kind, _) = plan_kind(f.method).expect("a coloured method");
     let topology = m.topology();
     let fresh = matches!(&ws.plan, Some((t, plan))
         if *t == topology && plan.kind() == kind && (!p.first_of_substep() || plan.fits(m)));
