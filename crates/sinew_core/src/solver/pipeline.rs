@@ -121,45 +121,31 @@ pub fn closest<T: TargetSet + Sync + ?Sized>(
 pub fn sweep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &IterationParams) {
     let f = &p.substep.frame;
     let (order, inv_h2, split) = (f.order.as_slice(), p.substep.inv_h2, f.parallelism.muscles);
-    match f.method {
-        SolverMethod::Sequential if m.params.is_surface_layer() => {
-            let plan = plan_of_kind(m, ws, p, PlanKind::PerConstraint);
-            sweep::sweep_muscle(m, plan.sweep(), inv_h2, split);
-        }
-        SolverMethod::Sequential => gauss_seidel(m, split_volume(order).0, inv_h2),
-        SolverMethod::Colored { .. } | SolverMethod::Hybrid { .. } => {
-            let plan = plan_for(m, ws, p);
-            sweep::sweep_muscle(m, plan.sweep(), inv_h2, split);
-        }
-        SolverMethod::Jacobi { omega } => {
+    match (f.method, plan_kind_of(m, f.method)) {
+        (SolverMethod::Jacobi { omega }, _) => {
             let state = jacobi_for(m, ws, order);
             jacobi::project_jacobi(m, state, inv_h2, omega, split);
         }
+        (_, Some(_)) => {
+            let plan = plan_for(m, ws, p);
+            sweep::sweep_muscle(m, plan.sweep(), inv_h2, split);
+        }
+        (_, None) => gauss_seidel(m, split_volume(order).0, inv_h2),
     }
 }
 
-/// The colour plan `m` runs this iteration, built when the workspace has
-/// none of the method's kind for `m`'s current topology. The first
-/// iteration of a substep also compares the plan with the muscle's index
-/// arrays ([`ColorPlan::fits`]): a host may have retied a constraint through
-/// the public batches without [`Muscle::touch_topology`].
+/// The colour plan `m` runs this iteration ([`plan_kind_of`]), built when
+/// the workspace has none of that kind for `m`'s current topology. The
+/// first iteration of a substep also compares the plan with the muscle's
+/// index arrays ([`ColorPlan::fits`]): a host may have retied a constraint
+/// through the public batches without [`Muscle::touch_topology`].
 pub fn plan_for<'w>(
     m: &Muscle,
     ws: &'w mut MuscleWorkspace,
     p: &IterationParams,
 ) -> &'w mut ColorPlan {
-    let (kind, _) = plan_kind(p.substep.frame.method).expect("a coloured method");
-    plan_of_kind(m, ws, p, kind)
-}
-
-/// [`plan_for`] with the plan's kind given.
-fn plan_of_kind<'w>(
-    m: &Muscle,
-    ws: &'w mut MuscleWorkspace,
-    p: &IterationParams,
-    kind: PlanKind,
-) -> &'w mut ColorPlan {
     let f = &p.substep.frame;
+    let (kind, _) = plan_kind_of(m, f.method).expect("a coloured method or a surface layer");
     let topology = m.topology();
     let fresh = matches!(&ws.plan, Some((t, plan))
         if *t == topology && plan.kind() == kind && (!p.first_of_substep() || plan.fits(m)));
@@ -200,8 +186,12 @@ pub fn finish<T: TargetSet + Sync + ?Sized>(
     let f = &p.substep.frame;
     let (order, inv_h2, split) = (f.order.as_slice(), p.substep.inv_h2, f.parallelism.muscles);
     let (_, trailing) = split_volume(order);
-    if f.method != SolverMethod::Sequential {
-        if let (Some((_, omega)), Some((_, plan))) = (plan_kind(f.method), &mut ws.plan) {
+    let plan = plan_kind_of(m, f.method);
+    // Only a plain Gauss–Seidel pass projected a Volume in the middle of
+    // the order itself.
+    let plain_gauss_seidel = plan.is_none() && f.method == SolverMethod::Sequential;
+    if !plain_gauss_seidel {
+        if let (Some((_, omega)), Some((_, plan))) = (plan, &mut ws.plan) {
             plan.project_tail(m, inv_h2, omega, split);
         }
         if !trailing && order.contains(&ConstraintKind::Volume) {
@@ -211,6 +201,20 @@ pub fn finish<T: TargetSet + Sync + ?Sized>(
     bone_contacts(m, ws, targets, p.first_of_substep(), split);
     if trailing {
         project_volume(m, inv_h2, split);
+    }
+}
+
+/// The colour plan `m` runs on under `method` and its Jacobi ω: the
+/// method's own ([`plan_kind`]), or for a surface layer under
+/// `Sequential` the per-constraint colouring (see
+/// [`SolverMethod::Sequential`]); `None`: a plain Gauss–Seidel pass, or
+/// Jacobi.
+pub fn plan_kind_of(m: &Muscle, method: SolverMethod) -> Option<(PlanKind, f32)> {
+    match method {
+        SolverMethod::Sequential if m.params.is_surface_layer() => {
+            Some((PlanKind::PerConstraint, 1.0))
+        }
+        _ => plan_kind(method),
     }
 }
 

@@ -542,3 +542,44 @@ fn a_projection_order_must_list_every_type_once() {
         "{warnings:?}"
     );
 }
+
+/// A surface layer with a Volume of its own, under `Sequential`, with
+/// Volume in the middle of the projection order: the layer's colour-order
+/// pass leaves Volume out, so `finish` projects it (as it does after the
+/// coloured methods' passes), and the layer's volume is held — its
+/// positions differ from the same layer without a Volume.
+#[test]
+fn a_surface_layer_keeps_a_volume_from_the_middle_of_the_order() {
+    use crate::mesh::primitives::MeshGenerator;
+    use crate::muscle::MuscleParams;
+    use crate::scene::{MeshSource, MuscleSpec};
+    let run = |volume: bool| {
+        let mut scene = builtin("P1").unwrap();
+        let mut params = MuscleParams::surface_layer(2.2, 0.01);
+        params.volume.enabled = volume;
+        scene.muscles.push(MuscleSpec {
+            name: "skin".into(),
+            mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
+                center: Vec3::ZERO,
+                radii: Vec3::new(0.064, 0.029, 0.029),
+                segments: 14,
+                stacks: 12,
+            }),
+            targets: vec!["oval".into()],
+            params,
+            ..Default::default()
+        });
+        scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+        let order = &mut scene.settings.projection_order;
+        order.retain(|&k| k != K::Volume);
+        let fiber = order.iter().position(|&k| k == K::Fiber).unwrap();
+        order.insert(fiber, K::Volume);
+        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+        assert_eq!(s.muscles()[1].constraints.volume.is_some(), volume);
+        for _ in 0..10 {
+            s.step();
+        }
+        s.muscles()[1].x.clone()
+    };
+    assert_ne!(run(true), run(false));
+}
