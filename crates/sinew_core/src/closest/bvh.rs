@@ -48,6 +48,14 @@ impl Node {
     }
 }
 
+/// What a node of a [`TriangleBvh`] holds.
+pub(super) enum NodeContents<'a> {
+    /// Triangles.
+    Leaf(&'a [u32]),
+    /// Two children: this node index and the next.
+    Inner(usize),
+}
+
 /// Bounding-volume hierarchy over triangles (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub struct TriangleBvh {
@@ -152,6 +160,24 @@ impl TriangleBvh {
             self.nodes[i].min = min.into();
             self.nodes[i].max = max.into();
         }
+    }
+
+    /// Number of nodes; node 0 is the root and every child comes after its
+    /// parent.
+    pub(super) fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Node `i`: its box and what it holds.
+    pub(super) fn node(&self, i: usize) -> (Vec3A, Vec3A, NodeContents<'_>) {
+        let n = &self.nodes[i];
+        let (min, max) = n.corners();
+        let contents = if n.count > 0 {
+            NodeContents::Leaf(&self.order[n.start as usize..(n.start + n.count) as usize])
+        } else {
+            NodeContents::Inner(n.start as usize)
+        };
+        (min, max, contents)
     }
 
     /// The box around every triangle (`None` when there are none).

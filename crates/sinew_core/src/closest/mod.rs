@@ -41,9 +41,13 @@ use crate::constraints::TargetId;
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 
 mod bvh;
+mod faces;
+mod side;
 mod walk;
+mod winding;
 
 pub use bvh::TriangleBvh;
+pub use side::SideMemo;
 
 /// What a target is attached to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,7 +66,10 @@ pub const NO_TRIANGLE: u32 = u32::MAX;
 pub struct ClosestHit {
     /// Closest point, world.
     pub point: Vec3,
-    /// Interpolated outward unit normal at the point, world.
+    /// Outward unit normal at the point, world, interpolated from the vertex
+    /// normals ([`TargetSurface::settle_side`] turns it to the direction
+    /// from the point to the query where that reads the wrong side of a
+    /// bone).
     pub normal: Vec3,
     /// Barycentric coordinates in the triangle.
     pub barycentric: Vec3,
@@ -149,6 +156,9 @@ pub struct TargetSurface {
     /// Per vertex of a deforming target, its particle's inverse mass (see
     /// [`TargetSurface::point_inverse_mass`]); empty for rigid targets.
     inverse_mass: Vec<f32>,
+    /// A bone's face kinds and pseudo-normals, which say which side of it
+    /// a hit is on; empty for a deforming target.
+    pseudo_normals: side::PseudoNormals,
 }
 
 impl std::fmt::Debug for TargetSurface {
@@ -229,6 +239,10 @@ impl TargetSurface {
             neighbor_offsets.push(neighbors.len() as u32);
         }
         let fitted = positions.clone();
+        let pseudo_normals = match source {
+            TargetSource::Bone(_) => side::PseudoNormals::new(&positions, &triangles, &bvh),
+            TargetSource::Muscle(_) => side::PseudoNormals::default(),
+        };
         Self {
             name: name.into(),
             source,
@@ -248,6 +262,7 @@ impl TargetSurface {
             neighbor_offsets,
             neighbors,
             inverse_mass: Vec::new(),
+            pseudo_normals,
         }
     }
 
@@ -415,14 +430,14 @@ impl TargetSurface {
     /// for confirming what the closest-point test reports.
     pub fn winding_number(&self, query: Vec3) -> f32 {
         let q = self.to_local(query);
-        let mut sum = 0.0f64;
-        for t in &self.triangles {
-            let [a, b, c] = t.map(|i| (self.positions[i as usize] - q).as_dvec3());
-            let (la, lb, lc) = (a.length(), b.length(), c.length());
-            let numerator = a.dot(b.cross(c));
-            let denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
-            sum += 2.0 * numerator.atan2(denominator);
-        }
+        let sum: f64 = self
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| (self.positions[i as usize] - q).as_dvec3());
+                winding::solid_angle(a, b, c)
+            })
+            .sum();
         (sum / (4.0 * std::f64::consts::PI)) as f32
     }
 
@@ -595,3 +610,6 @@ pub fn closest_point_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec3
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod side_tests;

@@ -20,7 +20,7 @@
 
 use super::closest_data::{CLOSEST_CHUNK, for_each_piece};
 use super::workspace::MuscleWorkspace;
-use crate::closest::{NO_TRIANGLE, TargetSet};
+use crate::closest::{NO_TRIANGLE, SideMemo, TargetSet};
 use crate::constraints::{ParticleId, TargetId};
 use crate::muscle::Muscle;
 use glam::{Vec3, Vec3A, Vec4};
@@ -70,6 +70,7 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         targets,
         first_of_substep,
         length_unit: m.length_unit,
+        layer: c.walk_first_only,
     };
     let n = c.len();
     ws.bone_settled.resize(n, Vec3::ZERO);
@@ -116,6 +117,9 @@ struct ContactInput<'a, T: ?Sized> {
     first_of_substep: bool,
     /// The muscle's length unit (the margin's rounding allowance).
     length_unit: f32,
+    /// A contact layer: the side of a bone is read from its features
+    /// ([`crate::closest::TargetSurface::settle_side`]).
+    layer: bool,
 }
 
 /// A run of Sliding constraints' bone-contact cells: the batch's slices
@@ -223,6 +227,10 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                         t => target.walk(x, t),
                     };
                     margin = 0.0;
+                    let hit = hit.map(|hit| match self.layer {
+                        true => target.settle_side(x, hit, &mut SideMemo::default()),
+                        false => hit,
+                    });
                     if let Some(hit) = hit {
                         *last = hit.triangle;
                         if hit.signed_distance < 0.0 {

@@ -7,7 +7,7 @@
 
 use super::params::ClosestSchedule;
 use super::workspace::MuscleWorkspace;
-use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
+use crate::closest::{ClosestHit, NO_TRIANGLE, SideMemo, TargetSet, TargetSurface};
 use crate::constraints::{ParticleId, TargetId, TargetSlot};
 use crate::muscle::Muscle;
 use glam::Vec3;
@@ -43,7 +43,8 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
         reach,
         walk_on_bones: c.sliding.walk_first_only,
     };
-    let run = SlidingRun::of(&mut c.sliding, &mut ws.warm);
+    ws.side_memo.resize(c.sliding.len(), SideMemo::default());
+    let run = SlidingRun::of(&mut c.sliding, &mut ws.warm, &mut ws.side_memo);
     if search.split && run.particle.len() > CLOSEST_CHUNK {
         run.for_each_chunk(CLOSEST_CHUNK, nt, &|run| input.closest(run));
     } else {
@@ -79,6 +80,8 @@ struct SlidingRun<'a> {
     particle: &'a [ParticleId],
     connected: &'a [bool],
     rest_gap: &'a [f32],
+    /// Whether the vertex was outside each target at rest (cells as `rest_gap`).
+    rest_outside: &'a [bool],
     point: &'a mut [Vec3],
     target_w: &'a mut [f32],
     normal: &'a mut [Vec3],
@@ -87,6 +90,8 @@ struct SlidingRun<'a> {
     barycentric: &'a mut [Vec3],
     plane: &'a mut [Vec3],
     warm: &'a mut [u32],
+    /// Per constraint, its last winding-number decision of a bone's side.
+    side_memo: &'a mut [SideMemo],
     /// The run's entries of the batch's `candidate_start` (one more than
     /// its constraints), into the whole `candidates`.
     candidate_start: &'a [u32],
@@ -97,11 +102,16 @@ struct SlidingRun<'a> {
 
 impl<'a> SlidingRun<'a> {
     /// The whole batch, with the muscle's warm cells.
-    fn of(s: &'a mut crate::constraints::SlidingBatch, warm: &'a mut [u32]) -> Self {
+    fn of(
+        s: &'a mut crate::constraints::SlidingBatch,
+        warm: &'a mut [u32],
+        side_memo: &'a mut [SideMemo],
+    ) -> Self {
         Self {
             particle: &s.particle,
             connected: &s.connected,
             rest_gap: &s.rest_gap,
+            rest_outside: &s.rest_outside,
             point: &mut s.point,
             target_w: &mut s.target_w,
             normal: &mut s.normal,
@@ -110,6 +120,7 @@ impl<'a> SlidingRun<'a> {
             barycentric: &mut s.barycentric,
             plane: &mut s.plane,
             warm,
+            side_memo,
             candidate_start: &s.candidate_start,
             candidates: &s.candidates,
             candidate_gap: &s.candidate_gap,
@@ -128,6 +139,7 @@ impl<'a> SlidingRun<'a> {
         let (particle, particle_b) = self.particle.split_at(at);
         let (connected, connected_b) = self.connected.split_at(at);
         let (rest_gap, rest_gap_b) = self.rest_gap.split_at(at * targets);
+        let (rest_outside, rest_outside_b) = self.rest_outside.split_at(at * targets);
         let (point, point_b) = self.point.split_at_mut(at);
         let (target_w, target_w_b) = self.target_w.split_at_mut(at);
         let (normal, normal_b) = self.normal.split_at_mut(at);
@@ -136,6 +148,7 @@ impl<'a> SlidingRun<'a> {
         let (barycentric, barycentric_b) = self.barycentric.split_at_mut(at);
         let (plane, plane_b) = self.plane.split_at_mut(at);
         let (warm, warm_b) = self.warm.split_at_mut(at * targets);
+        let (side_memo, side_memo_b) = self.side_memo.split_at_mut(at);
         // Both halves keep the boundary entry.
         let (candidate_start, candidate_start_b) =
             (&self.candidate_start[..=at], &self.candidate_start[at..]);
@@ -144,6 +157,7 @@ impl<'a> SlidingRun<'a> {
                 particle,
                 connected,
                 rest_gap,
+                rest_outside,
                 point,
                 target_w,
                 normal,
@@ -152,6 +166,7 @@ impl<'a> SlidingRun<'a> {
                 barycentric,
                 plane,
                 warm,
+                side_memo,
                 candidate_start,
                 candidates: self.candidates,
                 candidate_gap: self.candidate_gap,
@@ -160,6 +175,7 @@ impl<'a> SlidingRun<'a> {
                 particle: particle_b,
                 connected: connected_b,
                 rest_gap: rest_gap_b,
+                rest_outside: rest_outside_b,
                 point: point_b,
                 target_w: target_w_b,
                 normal: normal_b,
@@ -168,6 +184,7 @@ impl<'a> SlidingRun<'a> {
                 barycentric: barycentric_b,
                 plane: plane_b,
                 warm: warm_b,
+                side_memo: side_memo_b,
                 candidate_start: candidate_start_b,
                 candidates: self.candidates,
                 candidate_gap: self.candidate_gap,
@@ -249,6 +266,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             particle,
             connected,
             rest_gap,
+            rest_outside,
             point,
             target_w,
             normal,
@@ -257,6 +275,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             barycentric,
             plane,
             warm,
+            side_memo,
             candidate_start,
             candidates,
             candidate_gap,
@@ -333,9 +352,19 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         surface.on_triangle(q, t)
                     }
                 });
-                let Some(hit) = local.or_else(|| surface.closest_within(q, last, bound)) else {
+                let Some(mut hit) = local.or_else(|| surface.closest_within(q, last, bound)) else {
                     continue;
                 };
+                // Outside a bone at rest, which side of it a contact
+                // layer's vertex is on now decides whether Sliding throws
+                // it back out.
+                if self.walk_on_bones && rest_outside[i * nt + slot] {
+                    let memo = &mut side_memo[i];
+                    if memo.slot != slot as u32 {
+                        *memo = SideMemo::for_slot(slot as u32);
+                    }
+                    hit = surface.settle_side(q, hit, memo);
+                }
                 *cell = hit.triangle;
                 let claim = if hit.signed_distance < 0.0 && !surface.is_deforming() {
                     Claim::InsideBone(-hit.distance)

@@ -25,7 +25,7 @@
 //!   the two surfaces cross, cannot keep a gap both muscles agree on.
 
 use super::workspace::MuscleWorkspace;
-use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSource};
+use crate::closest::{ClosestHit, NO_TRIANGLE, SideMemo, TargetSet, TargetSource};
 use crate::constraints::{ParticleId, TargetSlot};
 use crate::muscle::{Muscle, SurfaceAnchor};
 use glam::Vec3;
@@ -58,6 +58,10 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     c.sliding.mode = m.params.sliding_mode;
     c.sliding.walk_first_only = m.params.is_surface_layer()
         && m.params.sliding_mode == crate::constraints::SlidingMode::Contact;
+    // A contact layer reads which side of a bone it is on from the bone's
+    // features ([`TargetSurface::settle_side`]); muscles keep the smooth
+    // normal's reading (cheaper, and their figures were measured with it).
+    let layer = c.sliding.walk_first_only;
     c.sliding.rigid = surfaces
         .iter()
         .map(|t| !t.is_deforming() && matches!(t.source, TargetSource::Bone(_)))
@@ -92,7 +96,13 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
                     continue;
                 }
             }
-            let hit = surfaces[slot].closest(q, None);
+            let hit = surfaces[slot].closest(q, None).map(|hit| {
+                if layer {
+                    surfaces[slot].settle_side(q, hit, &mut SideMemo::default())
+                } else {
+                    hit
+                }
+            });
             if let Some(h) = hit {
                 nearest = nearest.min(h.distance);
                 if rigid {

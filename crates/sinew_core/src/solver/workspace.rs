@@ -7,6 +7,7 @@
 //! warm, clearance   closest data's last triangle and bone clearance per
 //! bone_margin       (vertex, target); the bone contacts' margin per vertex
 //! bone_boxes        the bones' world boxes, for bone contacts
+//! side_memo         per vertex, its last winding-number side of a bone
 //! plan, jacobi      colour plan / Jacobi incidence of the method in use
 //! momentum          a free muscle's momentum, recorded at the substep's start
 //! ```
@@ -18,7 +19,7 @@
 use super::coloring::ColorPlan;
 use super::jacobi::JacobiState;
 use super::momentum::RigidMomentum;
-use crate::closest::NO_TRIANGLE;
+use crate::closest::{NO_TRIANGLE, SideMemo};
 use crate::constraints::TargetId;
 use crate::muscle::Muscle;
 use glam::{Vec3, Vec3A, Vec4};
@@ -57,6 +58,9 @@ pub struct MuscleWorkspace {
     /// its check, written back to the muscle once every vertex is checked
     /// (the checks run in parallel chunks).
     pub(crate) bone_settled: Vec<Vec3>,
+    /// Closest data's last winding-number decision of a bone's side per
+    /// Sliding constraint (see [`SideMemo`]).
+    pub(crate) side_memo: Vec<SideMemo>,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
     pub(crate) plan: Option<(u64, ColorPlan)>,
@@ -82,6 +86,7 @@ impl MuscleWorkspace {
             .resize(m.constraints.sliding.len(), Vec4::ZERO);
         self.bone_boxes.clear();
         self.bone_groups.clear();
+        self.side_memo.clear();
     }
 
     /// The colour plan in use, if any (for reports and debug views).
