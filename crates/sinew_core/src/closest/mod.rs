@@ -158,7 +158,9 @@ pub struct TargetSurface {
     inverse_mass: Vec<f32>,
     /// A bone's face kinds and pseudo-normals, which say which side of it
     /// a hit is on; empty for a deforming target.
-    pseudo_normals: side::PseudoNormals,
+    /// (Boxed: the closest-point queries read the fields above, and keep
+    /// them together.)
+    pseudo_normals: Box<side::PseudoNormals>,
 }
 
 impl std::fmt::Debug for TargetSurface {
@@ -239,10 +241,10 @@ impl TargetSurface {
             neighbor_offsets.push(neighbors.len() as u32);
         }
         let fitted = positions.clone();
-        let pseudo_normals = match source {
+        let pseudo_normals = Box::new(match source {
             TargetSource::Bone(_) => side::PseudoNormals::new(&positions, &triangles, &bvh),
             TargetSource::Muscle(_) => side::PseudoNormals::default(),
-        };
+        });
         Self {
             name: name.into(),
             source,

@@ -24,11 +24,13 @@
 //! winding number at the query decides (the `winding` module), remembered
 //! per vertex by the caller ([`SideMemo`]).
 //!
-//! Where the interpolated normal disagrees with the side, or leans so far
-//! from the direction to the query that a small motion would flip it (more
-//! than 60°), the hit's normal becomes the direction from the closest point
-//! to the query, pointing out of the surface: the gradient of the signed
-//! distance. Elsewhere the hit keeps its smooth normal. Only rigid targets
+//! An interpolated normal that reads outside and leans less than 60° off
+//! the direction to the query is taken at its word: a small motion cannot
+//! turn it, and a wrong "outside" leaves a vertex where it is, where a wrong
+//! "inside" throws it through the bone. Otherwise, where the side found
+//! disagrees with the interpolated normal or it leans further, the hit's
+//! normal becomes the direction from the closest point to the query,
+//! pointing out of the surface: the gradient of the signed distance. Only rigid targets
 //! carry this: it is computed once; a muscle's surface is smooth and
 //! re-published every iteration. The solver reads sides this way for
 //! contact layers (skins) only, where a vertex was outside the bone at rest.
@@ -228,20 +230,26 @@ impl SideMemo {
 
 impl TargetSurface {
     /// `hit`, a closest point of this target to world `query`, with its side
-    /// read from the feature it lies on (module docs) on a rigid target: its
-    /// normal turned to the direction from the point to the query where the
-    /// interpolated normal reads the wrong side or leans more than 60° off
-    /// that direction. A deforming target's hit is returned as it is.
+    /// settled on a rigid target (module docs): a hit whose interpolated
+    /// normal reads outside within 60° of the direction to the query is
+    /// returned as it is; any other has its side read from the feature it
+    /// lies on, and its normal turned to the direction from the point to
+    /// the query where the interpolated one reads the other side or leans
+    /// further. A deforming target's hit is returned as it is.
     ///
     /// Cheap where the feature has an exact pseudo-normal. Elsewhere (an
-    /// open or non-manifold part of a scanned bone) a hit that does not
-    /// plainly read outside costs a winding number and a full closest-point
-    /// search, remembered in `memo` (per vertex, see [`SideMemo`]): the
-    /// next call from within that distance reuses the answer. Callers ask
-    /// only where the side matters: a vertex outside the bone at rest.
+    /// open or non-manifold part of a scanned bone, or an "inside" on one)
+    /// it costs a winding number and a full closest-point search,
+    /// remembered in `memo` (per vertex, see [`SideMemo`]): the next call
+    /// from within that distance reuses the answer. Callers ask only where
+    /// the side matters: a vertex outside the bone at rest.
     pub fn settle_side(&self, query: Vec3, hit: ClosestHit, memo: &mut SideMemo) -> ClosestHit {
         let p = &self.pseudo_normals;
-        if p.is_empty() {
+        // A deforming target; or a smooth normal that reads outside and
+        // leans less than 60° off the direction to the query, which a small
+        // motion cannot turn (wrong, it leaves a vertex inside where it is;
+        // a wrong "inside" throws one through the bone).
+        if p.is_empty() || hit.signed_distance >= 0.5 * hit.distance {
             return hit;
         }
         let q = self.to_local(query);
@@ -253,11 +261,7 @@ impl TargetSurface {
             hit.barycentric,
             q - self.to_local(hit.point),
         );
-        // What the feature says, or else a smooth normal that reads outside
-        // and leans less than 60° off the direction to the query.
-        let read = exact
-            .or_else(|| (hit.signed_distance >= 0.5 * hit.distance).then_some(hit.signed_distance));
-        let side = match (read, &p.winding) {
+        let side = match (exact, &p.winding) {
             // Outside, or a clean surface's exact answer.
             (Some(side), _) if side > 0.0 => side,
             (Some(side), None) => side,

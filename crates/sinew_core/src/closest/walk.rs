@@ -97,6 +97,7 @@ impl TargetSurface {
     }
 
     /// Builds the world-space hit for a local closest point.
+    #[inline]
     pub(super) fn hit(
         &self,
         query: Vec3,
