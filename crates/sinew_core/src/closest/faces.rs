@@ -36,10 +36,12 @@ pub(super) enum FaceKind {
 }
 
 /// Per undirected edge `(low, high)`, the triangles on it and whether each
-/// runs along it from low to high.
-fn edge_table(triangles: &[[u32; 3]]) -> HashMap<(u32, u32), Vec<(u32, bool)>> {
-    let mut edges: HashMap<(u32, u32), Vec<(u32, bool)>> =
-        HashMap::with_capacity(3 * triangles.len() / 2);
+/// runs along it from low to high ([`edge_table`]).
+pub(super) type EdgeTable = HashMap<(u32, u32), Vec<(u32, bool)>>;
+
+/// The [`EdgeTable`] of `triangles`.
+pub(super) fn edge_table(triangles: &[[u32; 3]]) -> EdgeTable {
+    let mut edges = EdgeTable::with_capacity(3 * triangles.len() / 2);
     for (i, t) in triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
@@ -52,10 +54,11 @@ fn edge_table(triangles: &[[u32; 3]]) -> HashMap<(u32, u32), Vec<(u32, bool)>> {
     edges
 }
 
-/// Whether every edge has exactly two triangles, which run along it in
-/// opposite directions: a closed, consistently wound surface.
-pub(super) fn closed_and_consistent(triangles: &[[u32; 3]]) -> bool {
-    edge_table(triangles)
+/// Whether every edge (of the surface `edges` is the table of) has exactly
+/// two triangles, which run along it in opposite directions: a closed,
+/// consistently wound surface.
+pub(super) fn closed_and_consistent(edges: &EdgeTable) -> bool {
+    edges
         .values()
         .all(|on| matches!(on[..], [(_, a), (_, b)] if a != b))
 }
@@ -64,9 +67,8 @@ pub(super) fn closed_and_consistent(triangles: &[[u32; 3]]) -> bool {
 /// edges of exactly two triangles (module docs): a triangle is turned where
 /// it runs along such an edge the same way as its neighbour, and a piece
 /// is turned whole where that turned most of its triangles, so the
-/// majority's winding is kept.
-pub(super) fn orient(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    let edges = edge_table(triangles);
+/// majority's winding is kept. `edges`: their [`EdgeTable`].
+pub(super) fn orient(triangles: &[[u32; 3]], edges: &EdgeTable) -> Vec<[u32; 3]> {
     let n = triangles.len();
     // Per triangle: whether it is turned, and whether it was reached yet.
     let mut turned = vec![false; n];

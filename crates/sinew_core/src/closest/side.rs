@@ -39,7 +39,6 @@ use super::faces::{self, FaceKind};
 use super::winding::WindingTree;
 use super::{ClosestHit, TargetSurface, TriangleBvh};
 use glam::Vec3;
-use std::collections::HashMap;
 
 /// Face kinds and pseudo-normals of a rigid target, in its local frame
 /// (empty for a deforming target).
@@ -65,10 +64,11 @@ pub(super) struct PseudoNormals {
 impl PseudoNormals {
     /// The face kinds and pseudo-normals of a surface with BVH `bvh`.
     pub(super) fn new(positions: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh) -> Self {
-        let (kind, oriented, winding) = if faces::closed_and_consistent(triangles) {
+        let edges = faces::edge_table(triangles);
+        let (kind, oriented, winding) = if faces::closed_and_consistent(&edges) {
             (vec![FaceKind::Wall; triangles.len()], triangles, None)
         } else {
-            let oriented = faces::orient(triangles);
+            let oriented = faces::orient(triangles, &edges);
             let tree = WindingTree::new(bvh, positions, &oriented);
             let kind = faces::classify(positions, &oriented, bvh, &tree);
             (kind, triangles, Some((oriented, tree)))
@@ -86,19 +86,13 @@ impl PseudoNormals {
                 FaceKind::Outside | FaceKind::Inside => Vec3::ZERO,
             })
             .collect();
-        // Walls per undirected edge, and whether each vertex touches a
-        // sheet.
-        let mut walls: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * triangles.len() / 2);
-        let mut open = vec![false; positions.len()];
-        for (t, k) in triangles.iter().zip(&kind) {
-            for e in 0..3 {
-                let (a, b) = (t[e], t[(e + 1) % 3]);
-                *walls.entry((a.min(b), a.max(b))).or_default() +=
-                    if *k == FaceKind::Wall { 1 } else { 3 };
-            }
-        }
-        let closed = |a: u32, b: u32| walls.get(&(a.min(b), a.max(b))) == Some(&2);
-        let closed_edges = triangles
+        // An edge with exactly two triangles, both walls, has an exact
+        // pseudo-normal; a vertex on any other edge has none.
+        let closed = |a: u32, b: u32| {
+            let on = &edges[&(a.min(b), a.max(b))];
+            on.len() == 2 && on.iter().all(|&(t, _)| kind[t as usize] == FaceKind::Wall)
+        };
+        let closed_edges: Vec<u8> = triangles
             .iter()
             .map(|t| {
                 (0..3).fold(0u8, |bits, e| {
@@ -106,12 +100,11 @@ impl PseudoNormals {
                 })
             })
             .collect();
-        for t in triangles {
-            for e in 0..3 {
-                if !closed(t[e], t[(e + 1) % 3]) {
-                    open[t[e] as usize] = true;
-                    open[t[(e + 1) % 3] as usize] = true;
-                }
+        let mut open = vec![false; positions.len()];
+        for (t, bits) in triangles.iter().zip(&closed_edges) {
+            for e in (0..3).filter(|e| bits >> e & 1 == 0) {
+                open[t[e] as usize] = true;
+                open[t[(e + 1) % 3] as usize] = true;
             }
         }
         let mut vertex = vec![Vec3::ZERO; positions.len()];

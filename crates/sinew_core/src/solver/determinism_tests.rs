@@ -219,26 +219,11 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
 /// keeps its plain Gauss–Seidel pass (no plan).
 #[test]
 fn sequential_splits_a_surface_layer_by_colour_with_the_same_bits() {
-    use crate::mesh::primitives::MeshGenerator;
-    use crate::muscle::MuscleParams;
-    use crate::scene::{MeshSource, MuscleSpec};
     let run = |threads| {
-        let mut scene = builtin("P1").unwrap();
-        scene.muscles.push(MuscleSpec {
-            name: "skin".into(),
-            mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
-                center: Vec3::ZERO,
-                radii: Vec3::new(0.064, 0.029, 0.029),
-                segments: 40,
-                stacks: 40,
-            }),
-            targets: vec!["oval".into()],
-            params: MuscleParams::surface_layer(2.2, 0.01),
-            ..Default::default()
-        });
+        let params = crate::muscle::MuscleParams::surface_layer(2.2, 0.01);
+        let mut scene = super::tests::p1_with_skin(40, 40, params);
         scene.settings.threads = threads;
         scene.settings.parallel_threshold = 0;
-        scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
         let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
         for _ in 0..5 {
             s.step();

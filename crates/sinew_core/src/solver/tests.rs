@@ -9,6 +9,33 @@ use crate::muscle::ConstraintKind as K;
 use crate::scene::builtin;
 use glam::Vec3;
 
+/// P1 under gravity with a skin over its oval: an ellipsoid surface layer
+/// just outside it (`segments` around, `stacks` rings) with `params`,
+/// sliding on the oval.
+pub(super) fn p1_with_skin(
+    segments: u32,
+    stacks: u32,
+    params: crate::muscle::MuscleParams,
+) -> crate::scene::Scene {
+    use crate::mesh::primitives::MeshGenerator;
+    use crate::scene::{MeshSource, MuscleSpec};
+    let mut scene = builtin("P1").unwrap();
+    scene.muscles.push(MuscleSpec {
+        name: "skin".into(),
+        mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::new(0.064, 0.029, 0.029),
+            segments,
+            stacks,
+        }),
+        targets: vec!["oval".into()],
+        params,
+        ..Default::default()
+    });
+    scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+    scene
+}
+
 /// P1 after one step (goals of Soft/Hard/Sliding filled), predictions
 /// perturbed so that every constraint is violated. The contact band spans
 /// the whole oval, so every vertex slides on the plane; every surface vertex
@@ -550,26 +577,10 @@ fn a_projection_order_must_list_every_type_once() {
 /// positions differ from the same layer without a Volume.
 #[test]
 fn a_surface_layer_keeps_a_volume_from_the_middle_of_the_order() {
-    use crate::mesh::primitives::MeshGenerator;
-    use crate::muscle::MuscleParams;
-    use crate::scene::{MeshSource, MuscleSpec};
     let run = |volume: bool| {
-        let mut scene = builtin("P1").unwrap();
-        let mut params = MuscleParams::surface_layer(2.2, 0.01);
+        let mut params = crate::muscle::MuscleParams::surface_layer(2.2, 0.01);
         params.volume.enabled = volume;
-        scene.muscles.push(MuscleSpec {
-            name: "skin".into(),
-            mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
-                center: Vec3::ZERO,
-                radii: Vec3::new(0.064, 0.029, 0.029),
-                segments: 14,
-                stacks: 12,
-            }),
-            targets: vec!["oval".into()],
-            params,
-            ..Default::default()
-        });
-        scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+        let mut scene = p1_with_skin(14, 12, params);
         let order = &mut scene.settings.projection_order;
         order.retain(|&k| k != K::Volume);
         let fiber = order.iter().position(|&k| k == K::Fiber).unwrap();
