@@ -107,6 +107,11 @@ pub struct CheckArgs {
     /// value: the scene at rest.
     #[arg(long)]
     pub still: bool,
+    /// Switch every muscle off: activation 0, no activation curve, no
+    /// sensor drive (e.g. with `--still`: the skin at rest with no muscle
+    /// active).
+    #[arg(long)]
+    pub relaxed: bool,
     #[command(flatten)]
     pub limits: Limits,
     #[command(flatten)]
@@ -123,6 +128,9 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     let (mut scene, base) = load_scene(&args.scene)?;
     if args.still {
         scene.hold_first_pose();
+    }
+    if args.relaxed {
+        scene.relax_muscles();
     }
     let mut solver = scene.instantiate(&base)?;
     args.overrides.apply(&mut solver)?;

@@ -8,7 +8,7 @@
 //! the rest of the skin follows its bones — every method, same bits for any
 //! thread count.
 
-use sinew_core::analysis::{RunMetrics, Thresholds, skin_bulges};
+use sinew_core::analysis::{RunMetrics, Thresholds, skin_bind_distances, skin_bulges};
 use sinew_core::animation::{TransformKey, TransformTrack};
 use sinew_core::character::primitives::two_bone_arm;
 use sinew_core::glam::{Quat, Vec3};
@@ -294,6 +294,32 @@ fn the_bulge_figure_measures_the_skin_over_the_active_muscle() {
             .any(|v| v.figure == "skin bulge" && v.pass == Some(false)),
         "twice the bulge is out of range"
     );
+}
+
+/// `check`'s "rest skin bind" figure is judged where no muscle is active:
+/// at rest every bound vertex counts and is where skinning puts it; with the
+/// biceps contracted, the vertices over it (meant to bulge) are reported
+/// apart, and the rest of the skin still follows its bones.
+#[test]
+fn the_skin_bind_figure_leaves_the_active_muscles_bulge_apart() {
+    let mut solver = arm(SolverMethod::Sequential, 2);
+    run(&mut solver, 60);
+    let bound = solver.muscles()[1].binding.len();
+    let rest = skin_bind_distances(&solver, 2e-3);
+    assert_eq!(rest.len(), 1);
+    let r = rest[0];
+    assert_eq!((r.bound, r.active_bound, r.over), (bound, 0, 0), "{r:?}");
+    assert!(r.max < 2e-3, "at rest: {r:?}");
+
+    run(&mut solver, 210);
+    let f = skin_bind_distances(&solver, 2e-3)[0];
+    eprintln!("flexed: {f:?}");
+    assert_eq!(f.bound + f.active_bound, bound);
+    // The skin tube's nearest target is the biceps everywhere (the bones
+    // are thin bars inside it): the whole skin is where a muscle is active.
+    assert_eq!(f.active_bound, bound, "{f:?}");
+    assert!(f.active_max >= 5e-3, "the bulge is left apart: {f:?}");
+    assert!(f.max <= 2e-3, "nothing judged is off: {f:?}");
 }
 
 #[test]

@@ -42,36 +42,64 @@ pub fn skin_inside_vertices(solver: &Solver) -> Vec<(usize, usize, usize)> {
 }
 
 /// How far one skin is from where its binding puts it ([`skin_bind_distances`]).
+///
+/// Judged where no muscle is active: a skin vertex whose nearest target is a
+/// muscle with an activation above zero is meant to move with that muscle's
+/// bulge, and is reported apart (`active_*`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SkinBindDistance {
     /// The skin body.
     pub skin: usize,
-    /// Largest distance of a bound vertex from its skinned position. Units: m.
+    /// Largest distance of a bound vertex from its skinned position, of
+    /// those not over an active muscle. Units: m.
     pub max: f32,
     /// The vertex of the largest.
     pub vertex: u32,
-    /// Bound vertices farther than the limit asked for.
+    /// Bound vertices not over an active muscle farther than the limit
+    /// asked for.
     pub over: usize,
-    /// Bound vertices.
+    /// Bound vertices not over an active muscle.
     pub bound: usize,
+    /// Bound vertices over an active muscle (nearest target a muscle with
+    /// an activation above zero), left out of `max`, `over` and `bound`.
+    pub active_bound: usize,
+    /// Largest distance from the skinned position of a vertex over an
+    /// active muscle. Units: m.
+    pub active_max: f32,
 }
 
 /// Per skin, how far its bound vertices are from their skinned positions
 /// for the bones' current poses: the largest and how many are farther
-/// than `limit` (m).
+/// than `limit` (m), over the vertices where no muscle is active, and the
+/// largest over active muscles apart ([`SkinBindDistance`]).
 pub fn skin_bind_distances(solver: &Solver, limit: f32) -> Vec<SkinBindDistance> {
     let pose = |b: usize| solver.bones()[b].transform;
+    let muscles = solver.muscles();
     skins(solver)
         .map(|(i, m)| {
+            let targets = targets_of(solver, i);
             let mut d = SkinBindDistance {
                 skin: i,
                 max: 0.0,
                 vertex: 0,
                 over: 0,
-                bound: m.binding.len(),
+                bound: 0,
+                active_bound: 0,
+                active_max: 0.0,
             };
             for b in &m.binding {
-                let far = (m.x[b.vertex.index()] - b.goal(&pose)).length() / m.length_unit;
+                let x = m.x[b.vertex.index()];
+                let far = (x - b.goal(&pose)).length() / m.length_unit;
+                let over_active = nearest_target(&targets, x).is_some_and(|t| {
+                    matches!(targets[t].source,
+                        TargetSource::Muscle(j) if muscles[j].params.activation > 0.0)
+                });
+                if over_active {
+                    d.active_bound += 1;
+                    d.active_max = d.active_max.max(far);
+                    continue;
+                }
+                d.bound += 1;
                 d.over += usize::from(far > limit);
                 if far > d.max {
                     (d.max, d.vertex) = (far, b.vertex.raw());

@@ -310,13 +310,15 @@ impl RunMetrics {
             push(
                 "rest skin bind",
                 format!(
-                    "{:.3} mm from the skinned position ({} vertex {}); {} of {} vertices farther than {} mm",
+                    "{:.3} mm from the skinned position ({} vertex {}); {} of {} vertices farther than {} mm where no muscle is active (over active muscles, {} vertices: up to {:.3} mm)",
                     d.max * 1e3,
                     name(d.skin),
                     d.vertex,
                     d.over,
                     d.bound,
-                    limits.skin_bind * 1e3
+                    limits.skin_bind * 1e3,
+                    d.active_bound,
+                    d.active_max * 1e3
                 ),
                 format!("≤ {} mm", limits.skin_bind * 1e3),
                 judged(d.max <= limits.skin_bind),

@@ -283,6 +283,18 @@ impl Scene {
         }
     }
 
+    /// Switches every muscle off: activation 0, no activation curve and no
+    /// sensor drive (sensors still read the bones; nothing listens). The
+    /// scene with no muscle active, e.g. to judge a skin at rest where
+    /// nothing bulges.
+    pub fn relax_muscles(&mut self) {
+        for m in &mut self.muscles {
+            m.params.activation = 0.0;
+            m.activation = None;
+            m.drive.clear();
+        }
+    }
+
     /// Loads every bone and muscle mesh (paths relative to `base_dir`).
     pub fn load_meshes(
         &self,

@@ -48,3 +48,19 @@ fn holding_the_first_pose_removes_the_motion_and_keeps_the_start() {
     assert_eq!(curve.sample(0.0), start);
     assert_eq!(curve.sample(1.0), start);
 }
+
+#[test]
+fn relaxing_the_muscles_leaves_nothing_to_activate_them() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut scene = Scene::from_ron(&text, &path).unwrap();
+    assert!(
+        scene.muscles.iter().any(|m| !m.drive.is_empty()),
+        "T5's sensors drive its muscles"
+    );
+    scene.relax_muscles();
+    for m in &scene.muscles {
+        assert!(m.drive.is_empty() && m.activation.is_none(), "{}", m.name);
+        assert_eq!(m.params.activation, 0.0, "{}", m.name);
+    }
+}
