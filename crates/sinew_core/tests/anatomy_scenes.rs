@@ -224,8 +224,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
                 continue;
             }
             let v = c.particle[i].index();
-            for bone in (0..c.targets).filter(|&s| c.rigid[s] && c.rest_outside[i * c.targets + s])
-            {
+            for bone in (0..c.targets).filter(|&s| c.rigid[s] && c.outside_at_rest(i, s)) {
                 let surface = &targets[ws.target_ids[bone].index()];
                 let hit = surface.closest(m.p[v], None).unwrap();
                 let (mut m, mut ws) = (m.clone(), ws.clone());

@@ -42,6 +42,7 @@ pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
 pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;
 pub use runs::{OPEN_RUNS, RUN};
+pub(crate) use sliding::outside_at_rest;
 pub use sliding::{SlidingBatch, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams};
 

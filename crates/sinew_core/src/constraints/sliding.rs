@@ -25,6 +25,15 @@ use super::{
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+/// Whether a vertex was outside target `slot` at rest, from its run of a
+/// [`SlidingBatch::inside`] list: `start` holds the run's two bounds (its
+/// entries of `inside_start`).
+#[inline]
+pub(crate) fn outside_at_rest(inside: &[u32], start: &[u32], slot: usize) -> bool {
+    let run = &inside[start[0] as usize..start[1] as usize];
+    !run.contains(&(slot as u32))
+}
+
 /// Whether Sliding keeps the rest gap (equality) or only prevents penetration.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum SlidingMode {
@@ -42,13 +51,6 @@ pub struct SlidingBatch {
     pub particle: Vec<ParticleId>,
     /// Compliance per constraint (type compliance / painted weight); infinite = off.
     pub compliance: Vec<f32>,
-    /// Rest gap per (constraint, target): `rest_gap[i * targets + t]`;
-    /// `f32::INFINITY` where the vertex never slides on that target (out of
-    /// its contact band at rest, see [`crate::solver::pipeline::link`]).
-    /// Units: m.
-    pub rest_gap: Vec<f32>,
-    /// Whether the vertex was outside the target at rest, per (constraint, target).
-    pub rest_outside: Vec<bool>,
     /// Closest point on the chosen target (written by the closest-data block).
     pub point: Vec<Vec3>,
     /// Outward normal at `point`.
@@ -79,20 +81,37 @@ pub struct SlidingBatch {
     /// substep). Otherwise as
     /// [`crate::solver::SolverSettings::walk_every_iteration`] says.
     pub walk_first_only: bool,
-    /// The target slots each constraint may slide on (those with a finite
-    /// rest gap), ascending: constraint `i`'s are
-    /// `candidates[candidate_start[i]..candidate_start[i + 1]]`. Closest
-    /// data visits only these (a skin over a body has hundreds of targets
-    /// and a handful within reach of each vertex).
+    /// The target slots each constraint may slide on (those within its
+    /// contact band at rest, with a finite rest gap), ascending: constraint
+    /// `i`'s are `candidates[candidate_start[i]..candidate_start[i + 1]]`.
+    /// Closest data visits only these (a skin over a body has hundreds of
+    /// targets and a handful within reach of each vertex). Set by
+    /// [`Self::set_rest`].
     pub candidates: Vec<u32>,
     /// Where each constraint's run of `candidates` starts; one more entry
     /// than constraints.
     pub candidate_start: Vec<u32>,
-    /// The rest gap of each entry of `candidates` (`rest_gap` of that
-    /// constraint and slot), beside it: closest data reads a vertex's
-    /// gaps from one place instead of from a row of `targets` cells (a
-    /// skin's rows are hundreds of targets wide). Units: m.
+    /// The rest gap of each entry of `candidates`, beside it: the vertex's
+    /// distance to that target at rest, capped by its thickness. Every other
+    /// target's is infinite: the vertex never slides on it. Units: m.
     pub candidate_gap: Vec<f32>,
+    /// Whether the vertex was outside the target of each entry of
+    /// `candidates` at rest, beside it.
+    pub candidate_outside: Vec<bool>,
+    /// The target slots each constraint's vertex was inside of at rest,
+    /// ascending: constraint `i`'s are `inside[inside_start[i]..
+    /// inside_start[i + 1]]` (most vertices have none). A vertex inside a
+    /// target at rest is not pushed out of it.
+    pub inside: Vec<u32>,
+    /// Where each constraint's run of `inside` starts; one more entry than
+    /// constraints.
+    pub inside_start: Vec<u32>,
+    /// The rest gap to the chosen target, written with `target` (infinite
+    /// when none is chosen or it is out of the contact band). Units: m.
+    pub gap: Vec<f32>,
+    /// Whether the vertex was outside the chosen target at rest, written
+    /// with `target`.
+    pub outside: Vec<bool>,
     /// Whether the vertex connects at all: some target lies within reach
     /// ([`crate::muscle::MuscleParams::contact_reach`] for muscles, any gap
     /// for bones). A vertex out of reach keeps its constraints, switched off.
@@ -100,20 +119,58 @@ pub struct SlidingBatch {
 }
 
 impl SlidingBatch {
-    /// Rebuilds [`Self::candidates`] and [`Self::candidate_gap`] from the
-    /// rest gaps.
-    pub fn index_candidates(&mut self) {
+    /// Sets the rest data from dense rows of `targets` cells per
+    /// constraint: `rest_gap[i * targets + t]` (infinite where the vertex
+    /// never slides on target `t`) and `rest_outside[i * targets + t]`
+    /// (whether the vertex was outside `t` at rest). Keeps only the sparse
+    /// form: the candidates with their gaps and sides, and the targets
+    /// each vertex was inside of.
+    pub fn set_rest(&mut self, rest_gap: &[f32], rest_outside: &[bool]) {
+        let nt = self.targets.max(1);
+        debug_assert_eq!(rest_gap.len(), rest_outside.len());
         self.candidates.clear();
         self.candidate_gap.clear();
+        self.candidate_outside.clear();
         self.candidate_start.clear();
         self.candidate_start.push(0);
-        for row in self.rest_gap.chunks(self.targets.max(1)) {
-            for (slot, &gap) in row.iter().enumerate().filter(|(_, g)| g.is_finite()) {
-                self.candidates.push(slot as u32);
-                self.candidate_gap.push(gap);
+        self.inside.clear();
+        self.inside_start.clear();
+        self.inside_start.push(0);
+        for (gaps, outside) in rest_gap.chunks(nt).zip(rest_outside.chunks(nt)) {
+            for (slot, (&gap, &out)) in gaps.iter().zip(outside).enumerate() {
+                if gap.is_finite() {
+                    self.candidates.push(slot as u32);
+                    self.candidate_gap.push(gap);
+                    self.candidate_outside.push(out);
+                }
+                if !out {
+                    self.inside.push(slot as u32);
+                }
             }
             self.candidate_start.push(self.candidates.len() as u32);
+            self.inside_start.push(self.inside.len() as u32);
         }
+    }
+
+    /// Whether constraint `i`'s vertex was outside target `slot` at rest.
+    pub fn outside_at_rest(&self, i: usize, slot: usize) -> bool {
+        outside_at_rest(&self.inside, &self.inside_start[i..=i + 1], slot)
+    }
+
+    /// Constraint `i`'s rest gap to target `slot`: infinite where it
+    /// never slides on it. Units: m.
+    pub fn rest_gap(&self, i: usize, slot: usize) -> f32 {
+        let run = self.candidate_start[i] as usize..self.candidate_start[i + 1] as usize;
+        let k = self.candidates[run.clone()].binary_search(&(slot as u32));
+        k.map_or(f32::INFINITY, |k| self.candidate_gap[run.start + k])
+    }
+
+    /// Chooses target `slot` for constraint `i` (`None`: no target), with
+    /// its rest gap and side; the closest point is written apart.
+    pub fn choose(&mut self, i: usize, slot: Option<usize>) {
+        self.target[i] = slot.map_or(TargetSlot::NONE, TargetSlot::new);
+        self.gap[i] = slot.map_or(f32::INFINITY, |s| self.rest_gap(i, s));
+        self.outside[i] = slot.is_none_or(|s| self.outside_at_rest(i, s));
     }
 
     /// Number of constraints.
@@ -128,16 +185,15 @@ impl SlidingBatch {
 
     /// Value and gradient of constraint `i` at `p` (None when inactive).
     pub fn value_and_gradient(&self, i: usize, p: Vec3) -> Option<(f32, Vec3)> {
-        let t = self.target[i].get()?;
-        let slot = i * self.targets + t;
+        self.target[i].get()?;
         let (c, n) = (self.point[i], self.normal[i]);
-        let gap = self.rest_gap[slot];
+        let gap = self.gap[i];
         if !gap.is_finite() {
             // Out of the vertex's contact band: no rest gap to keep.
             return None;
         }
         let s = n.dot(p - c);
-        if s < 0.0 && self.rest_outside[slot] {
+        if s < 0.0 && self.outside[i] {
             return Some((s - gap, n));
         }
         let d = p - c;
@@ -206,9 +262,8 @@ impl ConstraintBatch for SlidingBatch {
             && w > 0.0
             && self.rigid.get(t) == Some(&true)
         {
-            let slot = i * self.targets + t;
             let s = self.normal[i].dot(x - self.point[i]);
-            if s < 0.0 && self.rest_outside[slot] {
+            if s < 0.0 && self.outside[i] {
                 x -= self.normal[i] * s;
             }
         }
@@ -231,19 +286,45 @@ impl ConstraintBatch for SlidingBatch {
 mod tests {
     use super::*;
 
-    /// Each candidate's gap is its constraint's rest gap on that slot, and
-    /// slots out of reach (infinite gaps) are not candidates.
+    /// Each candidate's gap and side sit beside its slot, slots out of
+    /// reach (infinite gaps) are not candidates, and the targets a vertex
+    /// was inside of at rest are listed whatever their gap.
     #[test]
-    fn candidate_gaps_sit_beside_their_slots() {
+    fn rest_data_is_kept_sparse_beside_its_slots() {
         let inf = f32::INFINITY;
         let mut s = SlidingBatch {
             targets: 3,
-            rest_gap: vec![0.1, inf, 0.3, inf, inf, inf, inf, 0.2, 0.0],
             ..Default::default()
         };
-        s.index_candidates();
+        let gaps = [0.1, inf, 0.3, inf, inf, inf, inf, 0.2, 0.0];
+        let outside = [true, false, true, true, true, true, true, true, false];
+        s.set_rest(&gaps, &outside);
         assert_eq!(s.candidate_start, [0, 2, 2, 4]);
         assert_eq!(s.candidates, [0, 2, 1, 2]);
         assert_eq!(s.candidate_gap, [0.1, 0.3, 0.2, 0.0]);
+        assert_eq!(s.candidate_outside, [true, true, true, false]);
+        assert_eq!(s.inside_start, [0, 1, 1, 2]);
+        assert_eq!(s.inside, [1, 2]);
+        for i in 0..3 {
+            for t in 0..3 {
+                assert_eq!(s.rest_gap(i, t), gaps[i * 3 + t], "({i}, {t})");
+                assert_eq!(s.outside_at_rest(i, t), outside[i * 3 + t], "({i}, {t})");
+            }
+        }
+        s.target = vec![TargetSlot::NONE; 3];
+        s.gap = vec![0.0; 3];
+        s.outside = vec![true; 3];
+        s.choose(2, Some(2));
+        assert_eq!(
+            (s.target[2].get(), s.gap[2], s.outside[2]),
+            (Some(2), 0.0, false)
+        );
+        s.choose(0, Some(1));
+        assert_eq!((s.gap[0], s.outside[0]), (inf, false));
+        s.choose(0, None);
+        assert_eq!(
+            (s.target[0].get(), s.gap[0], s.outside[0]),
+            (None, inf, true)
+        );
     }
 }

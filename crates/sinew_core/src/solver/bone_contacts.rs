@@ -19,8 +19,9 @@
 //! written back in order: the same bits for any thread count.
 
 use super::closest_data::{CLOSEST_CHUNK, for_each_piece};
-use super::workspace::MuscleWorkspace;
+use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{NO_TRIANGLE, SideMemo, TargetSet};
+use crate::constraints::outside_at_rest;
 use crate::constraints::{ParticleId, TargetId};
 use crate::muscle::Muscle;
 use glam::{Vec3, Vec3A, Vec4};
@@ -71,17 +72,17 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         first_of_substep,
         length_unit: m.length_unit,
         layer: c.walk_first_only,
+        inside: &c.inside,
     };
     let n = c.len();
     ws.bone_settled.resize(n, Vec3::ZERO);
     let run = ContactRun {
         particle: &c.particle,
-        rest_outside: &c.rest_outside,
-        warm: &mut ws.warm,
-        clearance: &mut ws.clearance,
+        inside_start: &c.inside_start,
+        cells: &mut ws.bone_cells,
+        ways: ws.bone_ways,
         margin: &mut ws.bone_margin,
         settled: &mut ws.bone_settled,
-        targets: nt,
     };
     if split && n > CLOSEST_CHUNK {
         let check = |run| input.check(run);
@@ -120,50 +121,50 @@ struct ContactInput<'a, T: ?Sized> {
     /// A contact layer: the side of a bone is read from its features
     /// ([`crate::closest::TargetSurface::settle_side`]).
     layer: bool,
+    /// The batch's `inside`: the targets each vertex was inside of at rest.
+    inside: &'a [u32],
 }
 
 /// A run of Sliding constraints' bone-contact cells: the batch's slices
-/// for the run and the workspace's, `targets` cells per constraint.
+/// for the run and the workspace's, `ways` bone cells per constraint.
 struct ContactRun<'a> {
     particle: &'a [ParticleId],
-    rest_outside: &'a [bool],
-    warm: &'a mut [u32],
-    clearance: &'a mut [Vec4],
+    /// The run's entries of the batch's `inside_start` (one more than its
+    /// constraints), into the whole `inside`.
+    inside_start: &'a [u32],
+    cells: &'a mut [BoneCell],
+    ways: usize,
     margin: &'a mut [Vec4],
     /// Each vertex's position after the check (written back afterwards).
     settled: &'a mut [Vec3],
-    targets: usize,
 }
 
 impl<'a> ContactRun<'a> {
     /// The first `at` constraints and the rest.
     fn split_at(self, at: usize) -> (Self, Self) {
-        let cells = at * self.targets;
         let (particle, particle_b) = self.particle.split_at(at);
-        let (rest_outside, rest_outside_b) = self.rest_outside.split_at(cells);
-        let (warm, warm_b) = self.warm.split_at_mut(cells);
-        let (clearance, clearance_b) = self.clearance.split_at_mut(cells);
+        // Both halves keep the boundary entry.
+        let (inside_start, inside_start_b) = (&self.inside_start[..=at], &self.inside_start[at..]);
+        let ways = self.ways;
+        let (cells, cells_b) = self.cells.split_at_mut(at * ways);
         let (margin, margin_b) = self.margin.split_at_mut(at);
         let (settled, settled_b) = self.settled.split_at_mut(at);
-        let targets = self.targets;
         (
             Self {
                 particle,
-                rest_outside,
-                warm,
-                clearance,
+                inside_start,
+                cells,
+                ways,
                 margin,
                 settled,
-                targets,
             },
             Self {
                 particle: particle_b,
-                rest_outside: rest_outside_b,
-                warm: warm_b,
-                clearance: clearance_b,
+                inside_start: inside_start_b,
+                cells: cells_b,
+                ways,
                 margin: margin_b,
                 settled: settled_b,
-                targets,
             },
         )
     }
@@ -172,7 +173,6 @@ impl<'a> ContactRun<'a> {
 impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
     /// Checks a run's vertices against their bones.
     fn check(&self, run: ContactRun) {
-        let nt = run.targets;
         for (i, id) in run.particle.iter().enumerate() {
             let v = id.index();
             let mut x = self.p[v];
@@ -198,8 +198,7 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                     continue;
                 }
                 for &(slot, lo, hi) in &self.boxes[group] {
-                    let cell = i * nt + slot;
-                    if !run.rest_outside[cell] {
+                    if !outside_at_rest(self.inside, &run.inside_start[i..=i + 1], slot) {
                         continue;
                     }
                     let outside_box = box_distance(q, lo, hi);
@@ -209,7 +208,9 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                     }
                     let target = self.targets.target(self.target_ids[slot]);
                     let local = target.to_local(x);
-                    let known = run.clearance[cell];
+                    let ways = &mut run.cells[i * run.ways..(i + 1) * run.ways];
+                    let cell = BoneCell::of(ways, slot);
+                    let known = cell.clearance;
                     let moved2 = local.distance_squared(known.truncate());
                     if moved2 < known.w * known.w {
                         margin = margin.min(known.w - moved2.sqrt());
@@ -217,12 +218,11 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                     }
                     let lower = target.lower_bound_local(local);
                     if lower > 0.0 {
-                        run.clearance[cell] = local.extend(lower);
+                        cell.clearance = local.extend(lower);
                         margin = margin.min(lower);
                         continue;
                     }
-                    let last = &mut run.warm[cell];
-                    let hit = match *last {
+                    let hit = match cell.warm {
                         NO_TRIANGLE => target.closest_within(x, None, f32::INFINITY),
                         t => target.walk(x, t),
                     };
@@ -232,12 +232,12 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                         false => hit,
                     });
                     if let Some(hit) = hit {
-                        *last = hit.triangle;
+                        cell.warm = hit.triangle;
                         if hit.signed_distance < 0.0 {
                             x -= hit.normal * hit.signed_distance;
-                            run.clearance[cell] = Vec4::ZERO;
+                            cell.clearance = Vec4::ZERO;
                         } else {
-                            run.clearance[cell] = local.extend(hit.distance);
+                            cell.clearance = local.extend(hit.distance);
                         }
                     }
                 }

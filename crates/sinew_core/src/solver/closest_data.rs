@@ -6,9 +6,10 @@
 //! [`super::bone_contacts`].
 
 use super::params::ClosestSchedule;
-use super::workspace::MuscleWorkspace;
+use super::sliding_run::SlidingRun;
+use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{ClosestHit, NO_TRIANGLE, SideMemo, TargetSet, TargetSurface};
-use crate::constraints::{ParticleId, TargetId, TargetSlot};
+use crate::constraints::{TargetId, TargetSlot};
 use crate::muscle::Muscle;
 use glam::Vec3;
 
@@ -44,9 +45,14 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
         walk_on_bones: c.sliding.walk_first_only,
     };
     ws.side_memo.resize(c.sliding.len(), SideMemo::default());
-    let run = SlidingRun::of(&mut c.sliding, &mut ws.warm, &mut ws.side_memo);
+    let run = SlidingRun::of(
+        &mut c.sliding,
+        &mut ws.candidate_warm,
+        (&mut ws.bone_cells, ws.bone_ways),
+        &mut ws.side_memo,
+    );
     if search.split && run.particle.len() > CLOSEST_CHUNK {
-        run.for_each_chunk(CLOSEST_CHUNK, nt, &|run| input.closest(run));
+        run.for_each_chunk(CLOSEST_CHUNK, &|run| input.closest(run));
     } else {
         input.closest(run);
     }
@@ -71,125 +77,6 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
                 c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
             }
         }
-    }
-}
-
-/// A run of Sliding constraints' closest data: the batch's slices for the
-/// run, and its warm cells (`targets` per constraint).
-struct SlidingRun<'a> {
-    particle: &'a [ParticleId],
-    connected: &'a [bool],
-    rest_gap: &'a [f32],
-    /// Whether the vertex was outside each target at rest (cells as `rest_gap`).
-    rest_outside: &'a [bool],
-    point: &'a mut [Vec3],
-    target_w: &'a mut [f32],
-    normal: &'a mut [Vec3],
-    target: &'a mut [TargetSlot],
-    triangle: &'a mut [u32],
-    barycentric: &'a mut [Vec3],
-    plane: &'a mut [Vec3],
-    warm: &'a mut [u32],
-    /// Per constraint, its last winding-number decision of a bone's side.
-    side_memo: &'a mut [SideMemo],
-    /// The run's entries of the batch's `candidate_start` (one more than
-    /// its constraints), into the whole `candidates`.
-    candidate_start: &'a [u32],
-    candidates: &'a [u32],
-    /// The batch's `candidate_gap`, beside `candidates`.
-    candidate_gap: &'a [f32],
-}
-
-impl<'a> SlidingRun<'a> {
-    /// The whole batch, with the muscle's warm cells.
-    fn of(
-        s: &'a mut crate::constraints::SlidingBatch,
-        warm: &'a mut [u32],
-        side_memo: &'a mut [SideMemo],
-    ) -> Self {
-        Self {
-            particle: &s.particle,
-            connected: &s.connected,
-            rest_gap: &s.rest_gap,
-            rest_outside: &s.rest_outside,
-            point: &mut s.point,
-            target_w: &mut s.target_w,
-            normal: &mut s.normal,
-            target: &mut s.target,
-            triangle: &mut s.triangle,
-            barycentric: &mut s.barycentric,
-            plane: &mut s.plane,
-            warm,
-            side_memo,
-            candidate_start: &s.candidate_start,
-            candidates: &s.candidates,
-            candidate_gap: &s.candidate_gap,
-        }
-    }
-
-    /// Runs `f` on runs of at most `k` constraints, in parallel on the
-    /// current rayon pool; `targets` warm cells per constraint.
-    fn for_each_chunk(self, k: usize, targets: usize, f: &(impl Fn(SlidingRun) + Sync)) {
-        let n = self.particle.len();
-        for_each_piece(self, n, k, &|run: Self, at| run.split_at(at, targets), f);
-    }
-
-    /// The first `at` constraints and the rest.
-    fn split_at(self, at: usize, targets: usize) -> (Self, Self) {
-        let (particle, particle_b) = self.particle.split_at(at);
-        let (connected, connected_b) = self.connected.split_at(at);
-        let (rest_gap, rest_gap_b) = self.rest_gap.split_at(at * targets);
-        let (rest_outside, rest_outside_b) = self.rest_outside.split_at(at * targets);
-        let (point, point_b) = self.point.split_at_mut(at);
-        let (target_w, target_w_b) = self.target_w.split_at_mut(at);
-        let (normal, normal_b) = self.normal.split_at_mut(at);
-        let (target, target_b) = self.target.split_at_mut(at);
-        let (triangle, triangle_b) = self.triangle.split_at_mut(at);
-        let (barycentric, barycentric_b) = self.barycentric.split_at_mut(at);
-        let (plane, plane_b) = self.plane.split_at_mut(at);
-        let (warm, warm_b) = self.warm.split_at_mut(at * targets);
-        let (side_memo, side_memo_b) = self.side_memo.split_at_mut(at);
-        // Both halves keep the boundary entry.
-        let (candidate_start, candidate_start_b) =
-            (&self.candidate_start[..=at], &self.candidate_start[at..]);
-        (
-            Self {
-                particle,
-                connected,
-                rest_gap,
-                rest_outside,
-                point,
-                target_w,
-                normal,
-                target,
-                triangle,
-                barycentric,
-                plane,
-                warm,
-                side_memo,
-                candidate_start,
-                candidates: self.candidates,
-                candidate_gap: self.candidate_gap,
-            },
-            Self {
-                particle: particle_b,
-                connected: connected_b,
-                rest_gap: rest_gap_b,
-                rest_outside: rest_outside_b,
-                point: point_b,
-                target_w: target_w_b,
-                normal: normal_b,
-                target: target_b,
-                triangle: triangle_b,
-                barycentric: barycentric_b,
-                plane: plane_b,
-                warm: warm_b,
-                side_memo: side_memo_b,
-                candidate_start: candidate_start_b,
-                candidates: self.candidates,
-                candidate_gap: self.candidate_gap,
-            },
-        )
     }
 }
 
@@ -265,20 +152,24 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
         let SlidingRun {
             particle,
             connected,
-            rest_gap,
-            rest_outside,
             point,
             target_w,
             normal,
             target,
+            gap: chosen_gap,
+            outside: chosen_outside,
             triangle,
             barycentric,
             plane,
             warm,
+            bone_cells,
+            bone_ways,
+            rigid,
             side_memo,
             candidate_start,
             candidates,
             candidate_gap,
+            candidate_outside,
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
         for i in 0..particle.len() {
@@ -304,20 +195,25 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // it is in (it may have entered one).
             let bones_only = !choose;
             let run = candidate_start[i] as usize..candidate_start[i + 1] as usize;
+            // `(slot, rest gap, outside at rest, warm cell)` of each
+            // candidate (its warm cell in the run's `warm`).
+            let base = candidate_start[0] as usize;
             let within = candidates[run.clone()].iter().map(|&s| s as usize);
-            let within = within.zip(candidate_gap[run].iter().copied());
-            // The held target's gap, beside its candidate entry (or, out of
-            // its contact band, from the row).
-            let held = (first < nt).then(|| {
-                let mut row = within.clone();
-                let gap = row.find(|&(s, _)| s == first).map(|(_, g)| g);
-                (first, gap.unwrap_or_else(|| rest_gap[i * nt + first]))
-            });
+            let within = within
+                .zip(candidate_gap[run.clone()].iter().copied())
+                .zip(candidate_outside[run.clone()].iter().copied())
+                .zip(run.start - base..run.end - base)
+                .map(|(((slot, gap), out), cell)| (slot, gap, out, cell));
+            // The held target's entry; out of its contact band it has none
+            // (no gap to keep) and is not held.
+            let held = (first < nt)
+                .then(|| within.clone().find(|&(s, ..)| s == first))
+                .flatten();
             let others = (choose || search.first_of_frame).then_some(within);
-            let others = others.into_iter().flatten().filter(|&(s, _)| s != first);
+            let others = others.into_iter().flatten().filter(|&(s, ..)| s != first);
             let full = search.wants(v);
-            let mut best: Option<(Claim, ClosestHit, usize)> = None;
-            for (slot, gap) in held.into_iter().chain(others) {
+            let mut best: Option<(Claim, ClosestHit, usize, f32, bool)> = None;
+            for (slot, gap, rest_outside, cell) in held.into_iter().chain(others) {
                 let surface = self.targets.target(self.target_ids[slot]);
                 // A target out of the vertex's contact band at rest (or
                 // across a seam, see `link_muscle`) is never chosen.
@@ -327,7 +223,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 // Only a hit nearer than `bound` can claim the vertex.
                 let bound = match &best {
                     None => f32::MAX,
-                    Some((claim, _, _)) => {
+                    Some((claim, ..)) => {
                         let lower = surface.lower_bound(q);
                         // Inside a bone's box the vertex may be inside the
                         // bone, which claims it whatever the others do.
@@ -342,7 +238,13 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         }
                     }
                 };
-                let cell = &mut warm[i * nt + slot];
+                let cell = match rigid[slot] {
+                    false => &mut warm[cell],
+                    true => {
+                        let ways = &mut bone_cells[i * bone_ways..(i + 1) * bone_ways];
+                        &mut BoneCell::of(ways, slot).warm
+                    }
+                };
                 let last = (*cell != NO_TRIANGLE).then_some(*cell);
                 let full = full && (surface.is_deforming() || !self.walk_on_bones);
                 let local = last.filter(|_| !full).and_then(|t| {
@@ -358,7 +260,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 // Outside a bone at rest, which side of it a contact
                 // layer's vertex is on now decides whether Sliding throws
                 // it back out.
-                if self.walk_on_bones && rest_outside[i * nt + slot] {
+                if self.walk_on_bones && rest_outside {
                     let memo = &mut side_memo[i];
                     if memo.slot != slot as u32 {
                         *memo = SideMemo::for_slot(slot as u32);
@@ -373,13 +275,13 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 };
                 if best
                     .as_ref()
-                    .is_none_or(|(b, _, _)| claim.beats(b, self.reach))
+                    .is_none_or(|(b, ..)| claim.beats(b, self.reach))
                 {
-                    best = Some((claim, hit, slot));
+                    best = Some((claim, hit, slot, gap, rest_outside));
                 }
             }
             match best {
-                Some((_, hit, slot)) => {
+                Some((_, hit, slot, gap, rest_outside)) => {
                     let surface = self.targets.target(self.target_ids[slot]);
                     point[i] = hit.point;
                     target_w[i] = surface.point_inverse_mass(hit.triangle, hit.barycentric);
@@ -392,8 +294,12 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                         plane[i] = surface.face_normal(hit.triangle);
                     }
                     target[i] = TargetSlot::new(slot);
+                    (chosen_gap[i], chosen_outside[i]) = (gap, rest_outside);
                 }
-                None => target[i] = TargetSlot::NONE,
+                None => {
+                    target[i] = TargetSlot::NONE;
+                    (chosen_gap[i], chosen_outside[i]) = (f32::INFINITY, true);
+                }
             }
         }
     }

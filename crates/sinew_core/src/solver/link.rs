@@ -24,7 +24,7 @@
 //!   vertices inside DELT2): a vertex inside another muscle, or next to where
 //!   the two surfaces cross, cannot keep a gap both muscles agree on.
 
-use super::workspace::MuscleWorkspace;
+use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{ClosestHit, NO_TRIANGLE, SideMemo, TargetSet, TargetSource};
 use crate::constraints::{ParticleId, TargetSlot};
 use crate::muscle::{Muscle, SurfaceAnchor};
@@ -46,10 +46,8 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     c.hard = Default::default();
     c.soft_anchor.clear();
     c.hard_anchor.clear();
-    let mut warm = vec![NO_TRIANGLE; n * nt];
     if nt == 0 {
         m.relink_weights();
-        ws.warm = warm;
         ws.reset_caches(m);
         return;
     }
@@ -126,6 +124,10 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
                         .all(|&u| outside(u as usize, slot)))
     };
     let thickness = m.maps.thickness.as_deref();
+    // Rest gaps and sides per (vertex, target), dense while linking; the
+    // batch keeps them sparse (`SlidingBatch::set_rest`).
+    let mut rest_gap: Vec<f32> = Vec::with_capacity(n * nt);
+    let mut rest_outside: Vec<bool> = Vec::with_capacity(n * nt);
     for v in 0..n {
         let q = m.x[v];
         let mut nearest: Option<Candidate> = None;
@@ -133,20 +135,17 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         let mut tie: Option<Candidate> = None;
         for (slot, surface) in surfaces.iter().enumerate() {
             let cell = v * nt + slot;
-            warm[cell] = hits[cell].map_or(NO_TRIANGLE, |h| h.triangle);
             let Some(h) = hits[cell] else {
-                c.sliding.rest_gap.push(f32::INFINITY);
-                c.sliding.rest_outside.push(true);
+                rest_gap.push(f32::INFINITY);
+                rest_outside.push(true);
                 continue;
             };
             let touching = touches(v, slot);
             // Sliding never chooses a target out of its band (see
-            // `SlidingBatch::rest_gap`); the thickness map caps the gap.
+            // `SlidingBatch::candidate_gap`); the thickness map caps the gap.
             let gap = thickness.map_or(h.distance, |t| h.distance.min(t[v]));
-            c.sliding
-                .rest_gap
-                .push(if touching { gap } else { f32::INFINITY });
-            c.sliding.rest_outside.push(!h.is_inside());
+            rest_gap.push(if touching { gap } else { f32::INFINITY });
+            rest_outside.push(!h.is_inside());
             let candidate = Some((slot, h));
             let nearer =
                 |best: &Option<Candidate>| best.is_none_or(|(_, b)| h.distance < b.distance);
@@ -177,6 +176,8 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         s.barycentric.push(hit.barycentric);
         s.plane.push(target.face_normal(hit.triangle));
         s.target.push(TargetSlot::new(slot));
+        s.gap.push(f32::INFINITY);
+        s.outside.push(true);
         s.lambda.push(0.0);
         let (slot, hit) = tie.unwrap_or(nearest);
         let target = surfaces[slot];
@@ -199,29 +200,53 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
             (*s, *h) = (target_w, target_w);
         }
     }
-    // rest_gap / rest_outside were pushed for every vertex; keep them aligned
-    // with the constraints (vertices without any hit have no constraint).
+    // The rows were pushed for every vertex; keep those of the constraints
+    // (vertices without any hit have no constraint).
     if c.sliding.len() != n {
         let keep: Vec<usize> = c.sliding.particle.iter().map(|&v| v.index()).collect();
-        let gap = std::mem::take(&mut c.sliding.rest_gap);
-        let out = std::mem::take(&mut c.sliding.rest_outside);
-        for v in keep {
-            c.sliding
-                .rest_gap
-                .extend_from_slice(&gap[v * nt..(v + 1) * nt]);
-            c.sliding
-                .rest_outside
-                .extend_from_slice(&out[v * nt..(v + 1) * nt]);
+        rest_gap = keep_rows(&rest_gap, &keep, nt);
+        rest_outside = keep_rows(&rest_outside, &keep, nt);
+    }
+    c.sliding.set_rest(&rest_gap, &rest_outside);
+    for i in 0..c.sliding.len() {
+        c.sliding.choose(i, c.sliding.target[i].get());
+    }
+    m.relink_weights();
+    ws.reset_caches(m);
+    // The walks start from the closest triangles at rest: closest data's
+    // on each candidate, bone contacts' on the nearest bones hit.
+    let s = &m.constraints.sliding;
+    let mut bones: Vec<(f32, usize, u32)> = Vec::new();
+    for (i, v) in s.particle.iter().enumerate() {
+        let row = &hits[v.index() * nt..(v.index() + 1) * nt];
+        for k in s.candidate_start[i] as usize..s.candidate_start[i + 1] as usize {
+            let hit = row[s.candidates[k] as usize];
+            ws.candidate_warm[k] = hit.map_or(NO_TRIANGLE, |h| h.triangle);
         }
-        let all = std::mem::take(&mut warm);
-        for &v in &c.sliding.particle {
-            warm.extend_from_slice(&all[v.index() * nt..(v.index() + 1) * nt]);
+        bones.clear();
+        bones.extend(row.iter().enumerate().filter_map(|(slot, hit)| {
+            let h = hit.filter(|_| s.rigid[slot])?;
+            Some((h.distance, slot, h.triangle))
+        }));
+        bones.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let ways = ws.bone_ways;
+        for (cell, &(_, slot, triangle)) in ws.bone_cells[i * ways..(i + 1) * ways]
+            .iter_mut()
+            .zip(&bones)
+        {
+            *cell = BoneCell {
+                slot: slot as u32,
+                warm: triangle,
+                clearance: glam::Vec4::ZERO,
+            };
         }
     }
-    c.sliding.index_candidates();
-    m.relink_weights();
-    let cells = warm.len();
-    ws.reset_caches(m);
-    debug_assert_eq!(ws.warm.len(), cells);
-    ws.warm = warm;
+}
+
+/// The rows `keep` of `all` (rows of `width` cells), in that order.
+fn keep_rows<T: Copy>(all: &[T], keep: &[usize], width: usize) -> Vec<T> {
+    keep.iter()
+        .flat_map(|&row| &all[row * width..(row + 1) * width])
+        .copied()
+        .collect()
 }

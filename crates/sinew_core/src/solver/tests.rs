@@ -114,10 +114,12 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
         K::Sliding => {
             let s = &mut c.sliding;
             let nt = s.targets;
+            let gaps: Vec<f32> = (0..nt).map(|t| s.rest_gap(keep, t)).collect();
+            let sides: Vec<bool> = (0..nt).map(|t| s.outside_at_rest(keep, t)).collect();
             s.particle = vec![s.particle[keep]];
             s.compliance = vec![0.0];
-            s.rest_gap = s.rest_gap[keep * nt..(keep + 1) * nt].to_vec();
-            s.rest_outside = s.rest_outside[keep * nt..(keep + 1) * nt].to_vec();
+            s.gap = vec![s.gap[keep]];
+            s.outside = vec![s.outside[keep]];
             s.point = vec![s.point[keep]];
             s.normal = vec![s.normal[keep]];
             s.triangle = vec![s.triangle[keep]];
@@ -125,7 +127,7 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
             s.plane = vec![s.plane[keep]];
             s.target = vec![s.target[keep]];
             s.lambda = vec![0.0];
-            s.index_candidates();
+            s.set_rest(&gaps, &sides);
         }
         K::Area => {
             // A muscle has no Area constraints (a surface layer's): one on

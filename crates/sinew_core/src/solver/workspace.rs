@@ -4,8 +4,9 @@
 //!
 //! ```text
 //! target_ids        the driver's index of each of the muscle's targets
-//! warm, clearance   closest data's last triangle and bone clearance per
-//! bone_margin       (vertex, target); the bone contacts' margin per vertex
+//! candidate_warm    closest data's last triangle per (vertex, candidate)
+//! bone_cells        bone contacts' last triangle and clearance per
+//! bone_margin       (vertex, bone it is near); their margin per vertex
 //! bone_boxes        the bones' world boxes, for bone contacts
 //! side_memo         per vertex, its last winding-number side of a bone
 //! plan, jacobi      colour plan / Jacobi incidence of the method in use
@@ -24,6 +25,63 @@ use crate::constraints::TargetId;
 use crate::muscle::Muscle;
 use glam::{Vec3, Vec3A, Vec4};
 
+/// Most bone cells per Sliding constraint ([`MuscleWorkspace::bone_cells`]):
+/// a vertex is in the boxes of a handful of bones at once (a muscle with
+/// fewer bones among its targets has one cell per bone, and never forgets).
+pub(crate) const MAX_BONE_WAYS: usize = 8;
+
+/// Bone contacts' memory of one bone near one vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct BoneCell {
+    /// Where the vertex was, in the bone's frame, and how far it was from
+    /// the bone then (`w`; 0 = unknown). A rigid bone's distance is
+    /// 1-Lipschitz in the vertex position, so while the vertex stays within
+    /// that distance of that point it cannot have entered the bone.
+    pub clearance: Vec4,
+    /// The bone's target slot; `u32::MAX` for an empty cell.
+    pub slot: u32,
+    /// The last closest triangle on the bone, or [`NO_TRIANGLE`]: where
+    /// the next walk starts.
+    pub warm: u32,
+}
+
+impl BoneCell {
+    /// A cell that remembers nothing.
+    pub const EMPTY: Self = Self {
+        clearance: Vec4::ZERO,
+        slot: u32::MAX,
+        warm: NO_TRIANGLE,
+    };
+
+    /// The cell of `slot` among one vertex's `cells`: the one that holds
+    /// it, or else one to take over — an empty one, or the one whose bone
+    /// was farthest (its clearance is the least likely to be needed),
+    /// emptied for `slot`.
+    pub fn of(cells: &mut [BoneCell], slot: usize) -> &mut BoneCell {
+        let slot = slot as u32;
+        let k = match cells.iter().position(|c| c.slot == slot) {
+            Some(k) => k,
+            None => {
+                let k = (0..cells.len())
+                    .max_by(|&a, &b| {
+                        let far = |c: &BoneCell| match c.slot {
+                            u32::MAX => f32::INFINITY,
+                            _ => c.clearance.w,
+                        };
+                        far(&cells[a]).total_cmp(&far(&cells[b])).then(b.cmp(&a))
+                    })
+                    .expect("a vertex has bone cells");
+                cells[k] = BoneCell {
+                    slot,
+                    ..BoneCell::EMPTY
+                };
+                k
+            }
+        };
+        &mut cells[k]
+    }
+}
+
 /// A muscle's solver state (module docs).
 #[derive(Clone, Debug, Default)]
 pub struct MuscleWorkspace {
@@ -31,17 +89,21 @@ pub struct MuscleWorkspace {
     /// target order (the solver's table index; `0..k` for a driver that
     /// passes the targets themselves).
     pub target_ids: Vec<TargetId>,
-    /// The last closest triangle per (Sliding constraint, target slot),
-    /// `warm[i * targets + t]`, or [`NO_TRIANGLE`]: where the next walk of
-    /// that target starts (4 bytes a cell keeps the full body's table in
-    /// cache).
-    pub(crate) warm: Vec<u32>,
-    /// Bone contacts' clearance per (Sliding constraint, target slot), as
-    /// `warm`: where the vertex was, in the bone's frame, and how far it was
-    /// from the bone then (0 = unknown). A rigid bone's distance is
-    /// 1-Lipschitz in the vertex position, so while the vertex stays within
-    /// that distance of that point it cannot have entered the bone.
-    pub(crate) clearance: Vec<Vec4>,
+    /// Closest data's last closest triangle per entry of the Sliding
+    /// batch's `candidates` (beside it), or [`NO_TRIANGLE`]: where the next
+    /// walk of that target starts. A bone's is kept in `bone_cells`
+    /// instead, shared with the bone contacts (a skin sharing them folded
+    /// 93 triangles as the walk began, not sharing them 148).
+    pub(crate) candidate_warm: Vec<u32>,
+    /// Bone contacts' and closest data's memory of the bones each Sliding
+    /// constraint's vertex is near: `bone_ways` cells per constraint (`bone_cells[i *
+    /// bone_ways..]`), a small cache in place of a row per target (a skin
+    /// vertex has every bone of a body as a target and is in the boxes of
+    /// a few).
+    pub(crate) bone_cells: Vec<BoneCell>,
+    /// Bone cells per Sliding constraint: the muscle's bone targets, at
+    /// most [`MAX_BONE_WAYS`].
+    pub(crate) bone_ways: usize,
     /// Bone contacts' margin per Sliding constraint within a substep (bones
     /// do not move between its iterations): where the vertex was at the
     /// substep's first check, and how far it can move from there before one
@@ -76,11 +138,13 @@ impl MuscleWorkspace {
     /// Resets the closest-data caches for `m`'s connections (after a link),
     /// keeping `target_ids`.
     pub(crate) fn reset_caches(&mut self, m: &Muscle) {
-        let cells = m.constraints.sliding.len() * self.target_ids.len();
-        self.warm.clear();
-        self.warm.resize(cells, NO_TRIANGLE);
-        self.clearance.clear();
-        self.clearance.resize(cells, Vec4::ZERO);
+        let s = &m.constraints.sliding;
+        self.candidate_warm.clear();
+        self.candidate_warm.resize(s.candidates.len(), NO_TRIANGLE);
+        self.bone_ways = s.rigid.iter().filter(|&&r| r).count().min(MAX_BONE_WAYS);
+        self.bone_cells.clear();
+        self.bone_cells
+            .resize(s.len() * self.bone_ways, BoneCell::EMPTY);
         self.bone_margin.clear();
         self.bone_margin
             .resize(m.constraints.sliding.len(), Vec4::ZERO);
@@ -98,5 +162,42 @@ impl MuscleWorkspace {
     /// (`target_ids` set by [`super::pipeline::link`]).
     pub fn is_linked(&self, m: &Muscle) -> bool {
         self.target_ids.len() == m.targets.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bone keeps its cell; a new bone takes an empty cell, then the cell
+    /// of the farthest bone, emptied for it.
+    #[test]
+    fn a_bone_cell_is_kept_or_taken_from_the_farthest_bone() {
+        let mut cells = [BoneCell::EMPTY; 3];
+        for (slot, far) in [(7, 0.02), (3, 0.05), (9, 0.01)] {
+            let c = BoneCell::of(&mut cells, slot);
+            assert_eq!(
+                (c.slot, c.warm, c.clearance),
+                (slot as u32, NO_TRIANGLE, Vec4::ZERO)
+            );
+            (c.warm, c.clearance) = (11, Vec4::new(0.0, 0.0, 0.0, far));
+        }
+        assert_eq!(
+            cells.map(|c| c.slot),
+            [7, 3, 9],
+            "empty cells first, in order"
+        );
+        assert_eq!(
+            BoneCell::of(&mut cells, 3).warm,
+            11,
+            "a known bone keeps its cell"
+        );
+        let c = BoneCell::of(&mut cells, 4);
+        assert_eq!((c.slot, c.warm, c.clearance.w), (4, NO_TRIANGLE, 0.0));
+        assert_eq!(
+            cells.map(|c| c.slot),
+            [7, 4, 9],
+            "the farthest bone (3) gave way"
+        );
     }
 }

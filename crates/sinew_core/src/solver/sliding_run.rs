@@ -1,0 +1,157 @@
+//! A run of Sliding constraints' closest data: the batch's slices for a
+//! range of its constraints and the workspace's cells for them, cut in
+//! pieces that closest data fills in parallel ([`super::closest_data`]).
+
+use super::closest_data::for_each_piece;
+use super::workspace::BoneCell;
+use crate::closest::SideMemo;
+use crate::constraints::{ParticleId, SlidingBatch, TargetSlot};
+use glam::Vec3;
+
+/// A run of Sliding constraints' closest data: the batch's slices for the
+/// run, and the workspace's warm cells and side memos for it.
+pub(super) struct SlidingRun<'a> {
+    pub(super) particle: &'a [ParticleId],
+    pub(super) connected: &'a [bool],
+    pub(super) point: &'a mut [Vec3],
+    pub(super) target_w: &'a mut [f32],
+    pub(super) normal: &'a mut [Vec3],
+    pub(super) target: &'a mut [TargetSlot],
+    /// The chosen target's rest gap and side, written with `target`.
+    pub(super) gap: &'a mut [f32],
+    pub(super) outside: &'a mut [bool],
+    pub(super) triangle: &'a mut [u32],
+    pub(super) barycentric: &'a mut [Vec3],
+    pub(super) plane: &'a mut [Vec3],
+    /// The warm cells of the run's candidates (`candidate_warm` from the
+    /// run's first candidate on).
+    pub(super) warm: &'a mut [u32],
+    /// The bone contacts' cells of the run's constraints, `bone_ways` each:
+    /// a bone's warm triangle is theirs, shared (see
+    /// [`super::workspace::MuscleWorkspace::bone_cells`]).
+    pub(super) bone_cells: &'a mut [BoneCell],
+    pub(super) bone_ways: usize,
+    /// The batch's `rigid`: which target slots are bones.
+    pub(super) rigid: &'a [bool],
+    /// Per constraint, its last winding-number decision of a bone's side.
+    pub(super) side_memo: &'a mut [SideMemo],
+    /// The run's entries of the batch's `candidate_start` (one more than
+    /// its constraints), into the whole `candidates`.
+    pub(super) candidate_start: &'a [u32],
+    pub(super) candidates: &'a [u32],
+    /// The batch's `candidate_gap` and `candidate_outside`, beside
+    /// `candidates`.
+    pub(super) candidate_gap: &'a [f32],
+    pub(super) candidate_outside: &'a [bool],
+}
+
+impl<'a> SlidingRun<'a> {
+    /// The whole batch, with the workspace's cells for it
+    /// (`MuscleWorkspace::candidate_warm`, `bone_cells` of `bone_ways`
+    /// each, `side_memo` sized to the batch).
+    pub(super) fn of(
+        s: &'a mut SlidingBatch,
+        warm: &'a mut [u32],
+        (bone_cells, bone_ways): (&'a mut [BoneCell], usize),
+        side_memo: &'a mut [SideMemo],
+    ) -> Self {
+        Self {
+            particle: &s.particle,
+            connected: &s.connected,
+            point: &mut s.point,
+            target_w: &mut s.target_w,
+            normal: &mut s.normal,
+            target: &mut s.target,
+            gap: &mut s.gap,
+            outside: &mut s.outside,
+            triangle: &mut s.triangle,
+            barycentric: &mut s.barycentric,
+            plane: &mut s.plane,
+            warm,
+            bone_cells,
+            bone_ways,
+            rigid: &s.rigid,
+            side_memo,
+            candidate_start: &s.candidate_start,
+            candidates: &s.candidates,
+            candidate_gap: &s.candidate_gap,
+            candidate_outside: &s.candidate_outside,
+        }
+    }
+
+    /// Runs `f` on runs of at most `k` constraints, in parallel on the
+    /// current rayon pool.
+    pub(super) fn for_each_chunk(self, k: usize, f: &(impl Fn(SlidingRun) + Sync)) {
+        let n = self.particle.len();
+        for_each_piece(self, n, k, &|run: Self, at| run.split_at(at), f);
+    }
+
+    /// The first `at` constraints and the rest.
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let (particle, particle_b) = self.particle.split_at(at);
+        let (connected, connected_b) = self.connected.split_at(at);
+        let (point, point_b) = self.point.split_at_mut(at);
+        let (target_w, target_w_b) = self.target_w.split_at_mut(at);
+        let (normal, normal_b) = self.normal.split_at_mut(at);
+        let (target, target_b) = self.target.split_at_mut(at);
+        let (gap, gap_b) = self.gap.split_at_mut(at);
+        let (outside, outside_b) = self.outside.split_at_mut(at);
+        let (triangle, triangle_b) = self.triangle.split_at_mut(at);
+        let (barycentric, barycentric_b) = self.barycentric.split_at_mut(at);
+        let (plane, plane_b) = self.plane.split_at_mut(at);
+        let first = self.candidate_start[at] - self.candidate_start[0];
+        let (warm, warm_b) = self.warm.split_at_mut(first as usize);
+        let bone_ways = self.bone_ways;
+        let (bone_cells, bone_cells_b) = self.bone_cells.split_at_mut(at * bone_ways);
+        let (side_memo, side_memo_b) = self.side_memo.split_at_mut(at);
+        // Both halves keep the boundary entry.
+        let (candidate_start, candidate_start_b) =
+            (&self.candidate_start[..=at], &self.candidate_start[at..]);
+        (
+            Self {
+                particle,
+                connected,
+                point,
+                target_w,
+                normal,
+                target,
+                gap,
+                outside,
+                triangle,
+                barycentric,
+                plane,
+                warm,
+                bone_cells,
+                bone_ways,
+                rigid: self.rigid,
+                side_memo,
+                candidate_start,
+                candidates: self.candidates,
+                candidate_gap: self.candidate_gap,
+                candidate_outside: self.candidate_outside,
+            },
+            Self {
+                particle: particle_b,
+                connected: connected_b,
+                point: point_b,
+                target_w: target_w_b,
+                normal: normal_b,
+                target: target_b,
+                gap: gap_b,
+                outside: outside_b,
+                triangle: triangle_b,
+                barycentric: barycentric_b,
+                plane: plane_b,
+                warm: warm_b,
+                bone_cells: bone_cells_b,
+                bone_ways,
+                rigid: self.rigid,
+                side_memo: side_memo_b,
+                candidate_start: candidate_start_b,
+                candidates: self.candidates,
+                candidate_gap: self.candidate_gap,
+                candidate_outside: self.candidate_outside,
+            },
+        )
+    }
+}
