@@ -171,53 +171,50 @@ impl PseudoNormals {
     }
 }
 
-/// What the last two winding-number decisions of a bone's side cover,
-/// kept by the caller per vertex for [`TargetSurface::settle_side`]: the
-/// points they were taken at (the bone's frame) and their exact distances
-/// from the bone, signed (positive outside). A point within that distance
-/// of one is on the same side: the bone is rigid and no closer there. Two,
-/// because a vertex at rest visits two places each step: where gravity
-/// predicts it (g·dt² lower, 2.7 mm at 60 Hz) and where its constraints
-/// put it back. Holds the target slot the caller took them for
-/// (`u32::MAX`: none).
+/// What the last winding-number decisions of a vertex's sides of its
+/// bones cover, kept by the caller per vertex for
+/// [`TargetSurface::settle_side`]: for each, the bone (the caller's name
+/// for it), the point it was taken at (the bone's frame) and its exact
+/// distance from the bone, signed (positive outside). A point within that
+/// distance of one is on the same side: the bone is rigid and no closer
+/// there. Several, because a vertex at rest visits two places each step
+/// (where gravity predicts it, g·dt² lower, 2.7 mm at 60 Hz, and where its
+/// constraints put it back), and a vertex near a joint is near two bones,
+/// which its closest data and its bone contacts both ask about.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SideMemo {
-    /// The caller's name for the target they were taken for.
-    pub slot: u32,
-    /// `(point, signed distance)`, the newer first.
-    taken: [(Vec3, f32); 2],
+    /// `(bone, point, signed distance)`, the newest first; `u32::MAX`: empty.
+    taken: [(u32, Vec3, f32); SideMemo::ENTRIES],
 }
 
 impl Default for SideMemo {
     fn default() -> Self {
         Self {
-            slot: u32::MAX,
-            taken: [(Vec3::ZERO, 0.0); 2],
+            taken: [(u32::MAX, Vec3::ZERO, 0.0); SideMemo::ENTRIES],
         }
     }
 }
 
 impl SideMemo {
-    /// An empty memo for the caller's target `slot`.
-    pub fn for_slot(slot: u32) -> Self {
-        Self {
-            slot,
-            ..Self::default()
-        }
-    }
+    /// Decisions remembered per vertex.
+    pub const ENTRIES: usize = 8;
 
-    /// The side it remembers at local point `q` (positive outside), if `q`
-    /// is within the distance of where one was taken.
-    fn side_at(&self, q: Vec3) -> Option<f32> {
+    /// The side of `bone` it remembers at local point `q` (positive
+    /// outside), if `q` is within the distance of where one was taken.
+    fn side_at(&self, bone: u32, q: Vec3) -> Option<f32> {
         self.taken
             .iter()
-            .find(|(at, clearance)| q.distance_squared(*at) < clearance * clearance)
-            .map(|&(_, clearance)| clearance)
+            .find(|&&(b, at, clearance)| {
+                b == bone && q.distance_squared(at) < clearance * clearance
+            })
+            .map(|&(.., clearance)| clearance)
     }
 
-    /// Remembers a decision at `q` with signed distance `clearance`.
-    fn take(&mut self, q: Vec3, clearance: f32) {
-        self.taken = [(q, clearance), self.taken[0]];
+    /// Remembers a decision about `bone` at `q` with signed distance
+    /// `clearance`, forgetting the oldest.
+    fn take(&mut self, bone: u32, q: Vec3, clearance: f32) {
+        self.taken.copy_within(..Self::ENTRIES - 1, 1);
+        self.taken[0] = (bone, q, clearance);
     }
 }
 
@@ -233,10 +230,17 @@ impl TargetSurface {
     /// Cheap where the feature has an exact pseudo-normal. Elsewhere (an
     /// open or non-manifold part of a scanned bone, or an "inside" on one)
     /// it costs a winding number and a full closest-point search,
-    /// remembered in `memo` (per vertex, see [`SideMemo`]): the next call
-    /// from within that distance reuses the answer. Callers ask only where
-    /// the side matters: a vertex outside the bone at rest.
-    pub fn settle_side(&self, query: Vec3, hit: ClosestHit, memo: &mut SideMemo) -> ClosestHit {
+    /// remembered in `memo` (per vertex, see [`SideMemo`]) under `bone`,
+    /// the caller's name for this target: the next call about it from
+    /// within that distance reuses the answer. Callers ask only where the
+    /// side matters: a vertex outside the bone at rest.
+    pub fn settle_side(
+        &self,
+        query: Vec3,
+        hit: ClosestHit,
+        memo: &mut SideMemo,
+        bone: u32,
+    ) -> ClosestHit {
         let p = &self.pseudo_normals;
         // A deforming target; or a smooth normal that reads outside and
         // leans less than 60° off the direction to the query, which a small
@@ -262,7 +266,7 @@ impl TargetSurface {
             // A broken surface's "inside" (or no answer): a wrong "inside"
             // throws the vertex through the bone, so the winding number
             // decides, remembered for the next call nearby.
-            (_, Some((oriented, tree))) => match memo.side_at(q) {
+            (_, Some((oriented, tree))) => match memo.side_at(bone, q) {
                 Some(side) => side,
                 None => {
                     let w = tree.winding_number(&self.bvh, &self.positions, oriented, q);
@@ -270,7 +274,7 @@ impl TargetSurface {
                     let distance = self
                         .closest_within(query, Some(hit.triangle), f32::MAX)
                         .map_or(0.0, |h| h.distance);
-                    memo.take(q, distance.copysign(side));
+                    memo.take(bone, q, distance.copysign(side));
                     side
                 }
             },

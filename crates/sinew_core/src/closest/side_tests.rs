@@ -146,7 +146,7 @@ fn wrong_sides(
         .filter(|&&q| {
             let hit = t.closest(q, None).unwrap();
             let hit = if settle {
-                t.settle_side(q, hit, &mut SideMemo::default())
+                t.settle_side(q, hit, &mut SideMemo::default(), 0)
             } else {
                 hit
             };
@@ -188,15 +188,39 @@ fn a_flipped_wall_a_loose_sheet_and_a_hole_are_read_by_the_winding_number() {
 #[test]
 fn a_remembered_side_holds_within_the_distance_it_was_taken_at() {
     let t = damaged_bracket(false);
-    let mut memo = SideMemo::for_slot(0);
+    let mut memo = SideMemo::default();
     let mut taken = 0;
     for q in bracket_queries(&t) {
         let Some(inside) = truth(q) else { continue };
         let hit = t.closest(q, None).unwrap();
         let before = memo;
-        let settled = t.settle_side(q, hit, &mut memo);
+        let settled = t.settle_side(q, hit, &mut memo, 0);
         taken += usize::from(memo != before);
         assert_eq!(settled.is_inside(), inside, "{q}");
     }
     assert!(taken > 0);
+}
+
+/// A vertex near two bones asks about both in turn (its closest data, its
+/// bone contacts): the decision about one survives a decision about the
+/// other in between, so asking again takes no new winding number.
+#[test]
+fn a_side_taken_for_one_bone_survives_one_taken_for_another() {
+    let t = damaged_bracket(false);
+    let (mut decided, mut retaken) = (0, 0);
+    for q in bracket_queries(&t) {
+        let hit = t.closest(q, None).unwrap();
+        let mut memo = SideMemo::default();
+        t.settle_side(q, hit, &mut memo, 0);
+        if memo == SideMemo::default() {
+            continue; // no winding number needed here
+        }
+        decided += 1;
+        t.settle_side(q, hit, &mut memo, 1);
+        let before = memo;
+        t.settle_side(q, hit, &mut memo, 0);
+        retaken += usize::from(memo != before);
+    }
+    assert!(decided > 0);
+    assert_eq!(retaken, 0, "of {decided}");
 }

@@ -76,6 +76,7 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
     };
     let n = c.len();
     ws.bone_settled.resize(n, Vec3::ZERO);
+    ws.side_memo.resize(n, SideMemo::default());
     let run = ContactRun {
         particle: &c.particle,
         inside_start: &c.inside_start,
@@ -83,6 +84,7 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         ways: ws.bone_ways,
         margin: &mut ws.bone_margin,
         settled: &mut ws.bone_settled,
+        side_memo: &mut ws.side_memo,
     };
     if split && n > CLOSEST_CHUNK {
         let check = |run| input.check(run);
@@ -137,6 +139,9 @@ struct ContactRun<'a> {
     margin: &'a mut [Vec4],
     /// Each vertex's position after the check (written back afterwards).
     settled: &'a mut [Vec3],
+    /// Each vertex's sides of its bones, shared with its closest data (a
+    /// contact layer's, see [`SideMemo`]).
+    side_memo: &'a mut [SideMemo],
 }
 
 impl<'a> ContactRun<'a> {
@@ -149,6 +154,7 @@ impl<'a> ContactRun<'a> {
         let (cells, cells_b) = self.cells.split_at_mut(at * ways);
         let (margin, margin_b) = self.margin.split_at_mut(at);
         let (settled, settled_b) = self.settled.split_at_mut(at);
+        let (side_memo, side_memo_b) = self.side_memo.split_at_mut(at);
         (
             Self {
                 particle,
@@ -157,6 +163,7 @@ impl<'a> ContactRun<'a> {
                 ways,
                 margin,
                 settled,
+                side_memo,
             },
             Self {
                 particle: particle_b,
@@ -165,6 +172,7 @@ impl<'a> ContactRun<'a> {
                 ways,
                 margin: margin_b,
                 settled: settled_b,
+                side_memo: side_memo_b,
             },
         )
     }
@@ -228,7 +236,7 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                     };
                     margin = 0.0;
                     let hit = hit.map(|hit| match self.layer {
-                        true => target.settle_side(x, hit, &mut SideMemo::default()),
+                        true => target.settle_side(x, hit, &mut run.side_memo[i], slot as u32),
                         false => hit,
                     });
                     if let Some(hit) = hit {

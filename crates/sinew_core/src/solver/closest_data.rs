@@ -261,11 +261,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 // layer's vertex is on now decides whether Sliding throws
                 // it back out.
                 if self.walk_on_bones && rest_outside {
-                    let memo = &mut side_memo[i];
-                    if memo.slot != slot as u32 {
-                        *memo = SideMemo::for_slot(slot as u32);
-                    }
-                    hit = surface.settle_side(q, hit, memo);
+                    hit = surface.settle_side(q, hit, &mut side_memo[i], slot as u32);
                 }
                 *cell = hit.triangle;
                 let claim = if hit.signed_distance < 0.0 && !surface.is_deforming() {

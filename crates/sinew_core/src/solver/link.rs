@@ -96,7 +96,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
             }
             let hit = surfaces[slot].closest(q, None).map(|hit| {
                 if layer {
-                    surfaces[slot].settle_side(q, hit, &mut SideMemo::default())
+                    surfaces[slot].settle_side(q, hit, &mut SideMemo::default(), slot as u32)
                 } else {
                     hit
                 }
