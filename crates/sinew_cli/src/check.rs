@@ -237,15 +237,25 @@ fn muscle_tables(
 ) -> Result<()> {
     writeln!(
         out,
-        "{:<12}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}",
-        "muscle", "vol min", "vol max", "act max", "section×", "at act", "attach mm", "inside %"
+        "{:<12}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}{:>14}",
+        "muscle",
+        "vol min",
+        "vol max",
+        "act max",
+        "section×",
+        "at act",
+        "attach mm",
+        "inside %",
+        "span×"
     )?;
     for (i, m) in solver.muscles().iter().enumerate() {
         let (lo, hi) = metrics.volume_ratio[i];
         let (a, section) = metrics.section_at_peak[i];
+        let span = metrics.attachment_span[i]
+            .map_or("-".to_string(), |(lo, hi)| format!("{lo:.2}–{hi:.2}"));
         writeln!(
             out,
-            "{:<12}{:>9.3}{:>9.3}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}",
+            "{:<12}{:>9.3}{:>9.3}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}{:>14}",
             m.name,
             lo,
             hi,
@@ -253,7 +263,8 @@ fn muscle_tables(
             section,
             a,
             metrics.muscle_attachment_max[i] * 1e3,
-            metrics.muscle_penetration_max[i] * 100.0
+            metrics.muscle_penetration_max[i] * 100.0,
+            span
         )?;
     }
     writeln!(
@@ -282,7 +293,7 @@ fn muscle_tables(
     }
     writeln!(
         out,
-        "(strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
+        "(span: distance between the muscle's two farthest attachment groups over its rest value, extremes over the run: the mean strain its attachments force along its line; strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
     )?;
     Ok(())
 }

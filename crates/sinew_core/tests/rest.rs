@@ -128,3 +128,41 @@ fn t5_without_its_motion_settles_in_its_shape() {
         }
     }
 }
+
+/// What T5's attachments alone ask of its muscles as the elbow flexes to
+/// 120° (frame 150): the flexors' attachments come together and the
+/// extensors' move apart, so the brachialis must shorten and the triceps
+/// and anconeus lengthen, on average along their lines, by at least these
+/// spans, whatever the solver does; the shoulder muscles, whose bones do
+/// not move, keep theirs. At rest every span is 1.
+#[test]
+fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let scene = Scene::load(&path).unwrap();
+    let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
+    let mut metrics = RunMetrics::new(&solver, 0.002);
+    metrics.penetration_every = 1000;
+    for _ in 0..150 {
+        solver.step();
+        metrics.observe(&solver);
+    }
+    let span = |name: &str| {
+        let i = solver.muscle_index(name).unwrap();
+        let now = sinew_core::analysis::attachment_span(&solver.muscles()[i]).unwrap();
+        let (lo, hi) = metrics.attachment_span[i].unwrap();
+        assert!(lo <= 1.0 && hi >= 1.0, "{name}: the run starts at rest");
+        assert!(lo <= now && now <= hi, "{name}: {now} outside [{lo}, {hi}]");
+        now
+    };
+    eprintln!(
+        "spans at 120°: BRA {:.3}, BIClong {:.3}, TRIlong {:.3}, ANC {:.3}, DELT1 {:.3}",
+        span("BRA"),
+        span("BIClong"),
+        span("TRIlong"),
+        span("ANC"),
+        span("DELT1")
+    );
+    assert!(span("BRA") < 0.75 && span("BIClong") < 0.95);
+    assert!(span("TRIlong") > 1.15 && span("ANC") > 2.0);
+    assert!((span("DELT1") - 1.0).abs() < 0.01);
+}

@@ -49,6 +49,9 @@ pub struct RunMetrics {
     pub volume_ratio: Vec<(f64, f64)>,
     /// Per muscle: largest activation seen.
     pub activation_max: Vec<f32>,
+    /// Per muscle: the smallest and largest [`super::attachment_span`]
+    /// over the run (`None`: attached to fewer than two bones).
+    pub attachment_span: Vec<Option<(f32, f32)>>,
     /// Per muscle: belly cross-section at rest. Units: m².
     pub rest_section: Vec<f32>,
     /// Per muscle: (activation, section / rest section) at its most active frame.
@@ -195,6 +198,11 @@ impl RunMetrics {
             bulge_activation: 0.8,
             volume_ratio: vec![(f64::INFINITY, f64::NEG_INFINITY); n],
             activation_max: vec![0.0; n],
+            attachment_span: solver
+                .muscles()
+                .iter()
+                .map(|m| super::attachment_span(m).map(|s| (s, s)))
+                .collect(),
             rest_section: (0..n).map(|m| belly_cross_section(solver, m)).collect(),
             section_at_peak: vec![(0.0, 1.0); n],
             penetration_every: 1,
@@ -282,6 +290,11 @@ impl RunMetrics {
             let (lo, hi) = &mut self.volume_ratio[i];
             *lo = lo.min(ratio);
             *hi = hi.max(ratio);
+            if let (Some((lo, hi)), Some(span)) =
+                (&mut self.attachment_span[i], super::attachment_span(m))
+            {
+                (*lo, *hi) = (lo.min(span), hi.max(span));
+            }
             let a = m.params.activation;
             if a > self.activation_max[i] {
                 self.activation_max[i] = a;
