@@ -76,7 +76,6 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
     };
     let n = c.len();
     ws.bone_settled.resize(n, Vec3::ZERO);
-    ws.side_memo.resize(n, SideMemo::default());
     let run = ContactRun {
         particle: &c.particle,
         inside_start: &c.inside_start,

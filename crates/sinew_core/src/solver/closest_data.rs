@@ -8,7 +8,7 @@
 use super::params::ClosestSchedule;
 use super::sliding_run::SlidingRun;
 use super::workspace::{BoneCell, MuscleWorkspace};
-use crate::closest::{ClosestHit, NO_TRIANGLE, SideMemo, TargetSet, TargetSurface};
+use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use crate::constraints::{TargetId, TargetSlot};
 use crate::muscle::Muscle;
 use glam::Vec3;
@@ -44,7 +44,6 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
         reach,
         walk_on_bones: c.sliding.walk_first_only,
     };
-    ws.side_memo.resize(c.sliding.len(), SideMemo::default());
     let run = SlidingRun::of(
         &mut c.sliding,
         &mut ws.candidate_warm,

@@ -8,7 +8,7 @@
 //! bone_cells        bone contacts' last triangle and clearance per
 //! bone_margin       (vertex, bone it is near); their margin per vertex
 //! bone_boxes        the bones' world boxes, for bone contacts
-//! side_memo         per vertex, its last winding-number side of a bone
+//! side_memo         per vertex, its last winding-number sides of its bones
 //! plan, jacobi      colour plan / Jacobi incidence of the method in use
 //! momentum          a free muscle's momentum, recorded at the substep's start
 //! ```
@@ -120,8 +120,9 @@ pub struct MuscleWorkspace {
     /// its check, written back to the muscle once every vertex is checked
     /// (the checks run in parallel chunks).
     pub(crate) bone_settled: Vec<Vec3>,
-    /// Closest data's last winding-number decision of a bone's side per
-    /// Sliding constraint (see [`SideMemo`]).
+    /// Per Sliding constraint, its vertex's last winding-number decisions
+    /// of its sides of the bones near it, shared by closest data and bone
+    /// contacts (see [`SideMemo`]); sized at link.
     pub(crate) side_memo: Vec<SideMemo>,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
@@ -151,6 +152,7 @@ impl MuscleWorkspace {
         self.bone_boxes.clear();
         self.bone_groups.clear();
         self.side_memo.clear();
+        self.side_memo.resize(s.len(), SideMemo::default());
     }
 
     /// The colour plan in use, if any (for reports and debug views).
