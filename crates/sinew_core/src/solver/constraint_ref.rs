@@ -103,10 +103,22 @@ impl BatchFn for Project<'_> {
 /// written (Volume has none: it is solved apart).
 #[inline]
 pub fn correction(m: &Muscle, c: ConstraintRef, inv_h2: f32) -> Option<Correction> {
+    correction_with_weights(m, c, &m.w, inv_h2)
+}
+
+/// [`correction`] with the particles' inverse masses `w` in place of the
+/// muscle's own (Jacobi's split masses).
+#[inline]
+pub fn correction_with_weights(
+    m: &Muscle,
+    c: ConstraintRef,
+    w: &[f32],
+    inv_h2: f32,
+) -> Option<Correction> {
     let project = Project {
         i: c.index as usize,
         p: &m.p,
-        w: &m.w,
+        w,
         inv_h2,
     };
     m.constraints.with_batch(c.kind, project).flatten()

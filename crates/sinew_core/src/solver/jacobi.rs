@@ -8,15 +8,21 @@
 //! connection kept an eighth of its pull: P3 under gravity stretched its
 //! edges to ×2.3 and folded 17 triangles in its first frames, and never
 //! settled.) Every other constraint but Volume then computes its
-//! [`Correction`] from the same positions; each particle takes the
-//! corrections that move it, in a fixed order from a particle →
-//! (constraint, slot) incidence list built once, and moves by `ω / nᵢ`
-//! times their sum. Nothing is accumulated with atomics, so the result is
-//! the same for any thread count.
+//! [`Correction`] from the same positions, with each particle's mass split
+//! among the `nᵢ` Jacobi constraints that move it (inverse mass `nᵢ wᵢ`);
+//! each particle takes the corrections that move it, in a fixed order from
+//! a particle → (constraint, slot) incidence list built once, and moves by
+//! `ω / nᵢ` times their sum — `ω Σ wᵢ ∇C Δλ` — and each multiplier grows
+//! by `ω Δλ`, the impulse its particles took. (With unsplit masses and the
+//! whole `Δλ` kept, a compliant constraint's multiplier ran ahead of the
+//! position it gave and balanced a force `nᵢ/ω` times too large: T5 held
+//! still sagged to edges at ×0.57.) Nothing is accumulated with atomics, so
+//! the result is the same for any thread count.
 
 use super::coloring::{
     CHUNK_CONSTRAINTS, ConstraintRef, commit, constraints_in_order, correction, particles_of,
 };
+use super::constraint_ref::correction_with_weights;
 use crate::constraints::Correction;
 use crate::muscle::ConstraintKind;
 use crate::muscle::Muscle;
@@ -35,6 +41,8 @@ pub struct JacobiState {
     entries: Vec<(u32, u8)>,
     /// One slot per Jacobi constraint.
     corrections: Vec<Option<Correction>>,
+    /// Each particle's split inverse mass `nᵢ wᵢ` (scratch, filled per pass).
+    split_w: Vec<f32>,
 }
 
 impl JacobiState {
@@ -76,6 +84,7 @@ impl JacobiState {
         }
         Self {
             corrections: vec![None; jacobi.len()],
+            split_w: Vec::with_capacity(n),
             gauss_seidel,
             jacobi,
             offsets,
@@ -118,10 +127,16 @@ pub fn project_jacobi(
             commit(m, c, &corr);
         }
     }
+    let offsets = &state.offsets;
+    state.split_w.clear();
+    state.split_w.extend(m.w.iter().enumerate().map(|(i, &w)| {
+        let n = offsets[i + 1] - offsets[i];
+        w * n.max(1) as f32
+    }));
     {
-        let muscle: &Muscle = m;
+        let (muscle, split_w): (&Muscle, &[f32]) = (m, &state.split_w);
         let compute = |(slot, c): (&mut Option<Correction>, &ConstraintRef)| {
-            *slot = correction(muscle, *c, inv_h2);
+            *slot = correction_with_weights(muscle, *c, split_w, inv_h2);
         };
         if parallel {
             state
@@ -138,10 +153,14 @@ pub fn project_jacobi(
                 .for_each(compute);
         }
     }
-    // Multipliers: each constraint keeps its own increment.
+    // Multipliers: each constraint keeps the increment its particles take.
     for (c, corr) in state.jacobi.iter().zip(&state.corrections) {
         if let Some(corr) = corr {
-            let lambda_only = Correction { count: 0, ..*corr };
+            let lambda_only = Correction {
+                count: 0,
+                dlambda: omega * corr.dlambda,
+                ..*corr
+            };
             commit(m, *c, &lambda_only);
         }
     }
