@@ -168,9 +168,21 @@ fn scatter_polygon(poly: &[u32], r: &[Vec3A], m: Vec3A, share: Vec3A, g: &mut [V
             g[v as usize] += gradient_part(poly, j, r, m, share);
         }
     };
-    match poly {
+    match *poly {
         [_, _, _] => add(&poly[..3]),
-        [_, _, _, _] => add(&poly[..4]),
+        [a, b, c, d] => {
+            // A quad's opposite corners take opposite cross products:
+            // m × (p_d − p_b) is −(m × (p_b − p_d)) to the bit (IEEE
+            // rounding is symmetric, and a zero's sign is lost in the sum
+            // from +0), so two cross products serve its four corners.
+            let (a, b, c, d) = (a as usize, b as usize, c as usize, d as usize);
+            let across_bd = m.cross(r[b] - r[d]);
+            let across_ca = m.cross(r[c] - r[a]);
+            g[a] += -across_bd + share;
+            g[b] += -across_ca + share;
+            g[c] += across_bd + share;
+            g[d] += across_ca + share;
+        }
         _ => add(poly),
     }
 }
