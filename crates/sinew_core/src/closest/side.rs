@@ -32,8 +32,14 @@
 //! normal becomes the direction from the closest point to the query,
 //! pointing out of the surface: the gradient of the signed distance. Only rigid targets
 //! carry this: it is computed once; a muscle's surface is smooth and
-//! re-published every iteration. The solver reads sides this way for
-//! contact layers (skins) only, where a vertex was outside the bone at rest.
+//! re-published every iteration; a flat one (a ground plane) has one exact
+//! normal and no inside, and carries none. The solver reads sides this way
+//! where a vertex was outside the bone at rest: a contact layer's (skin's)
+//! closest data and bone contacts, and a muscle's bone contacts more than
+//! `solver::bone_contacts::SIDE_READ_BEYOND` from the bone (read from the
+//! interpolated normal, T5's brachialis ended its flexions thrown through a
+//! bone, 18.8 mm from its rest shape 2 s after the motion stopped; 2.6 mm
+//! read from the features).
 
 use super::faces::{self, FaceKind};
 use super::winding::WindingTree;
@@ -61,9 +67,35 @@ pub(super) struct PseudoNormals {
     winding: Option<(Vec<[u32; 3]>, WindingTree)>,
 }
 
+/// Whether every triangle of the surface lies in one plane, facing one way.
+fn is_flat(positions: &[Vec3], triangles: &[[u32; 3]]) -> bool {
+    let normal = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        (b - a).cross(c - a).normalize_or_zero()
+    };
+    let Some(first) = triangles.first().map(normal) else {
+        return false;
+    };
+    let origin = positions[triangles[0][0] as usize];
+    let size = positions
+        .iter()
+        .map(|p| p.distance(origin))
+        .fold(0.0f32, f32::max);
+    first != Vec3::ZERO
+        && triangles.iter().all(|t| normal(t).dot(first) > 1.0 - 1e-6)
+        && positions
+            .iter()
+            .all(|p| (*p - origin).dot(first).abs() <= 1e-6 * size)
+}
+
 impl PseudoNormals {
-    /// The face kinds and pseudo-normals of a surface with BVH `bvh`.
+    /// The face kinds and pseudo-normals of a surface with BVH `bvh`; none
+    /// for a flat one (a ground plane), whose one normal is exact
+    /// everywhere and which has no inside for a winding number to find.
     pub(super) fn new(positions: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh) -> Self {
+        if is_flat(positions, triangles) {
+            return Self::default();
+        }
         let edges = faces::edge_table(triangles);
         let (kind, oriented, winding) = if faces::closed_and_consistent(&edges) {
             (vec![FaceKind::Wall; triangles.len()], triangles, None)

@@ -224,3 +224,36 @@ fn a_side_taken_for_one_bone_survives_one_taken_for_another() {
     assert!(decided > 0);
     assert_eq!(retaken, 0, "of {decided}");
 }
+
+/// A ground plane (two triangles, open) has one exact normal and no
+/// inside: a point just below it keeps the plane's normal and its negative
+/// signed distance, where a winding number (±½ that close to a sheet) would
+/// decide its side by rounding; a bent sheet still carries pseudo-normals.
+#[test]
+fn a_flat_surface_keeps_its_normal() {
+    let positions: Vec<Vec3> = [
+        [-1.0, 0.0, -1.0],
+        [1.0, 0.0, -1.0],
+        [1.0, 0.0, 1.0],
+        [-1.0, 0.0, 1.0],
+    ]
+    .map(Vec3::from)
+    .to_vec();
+    let triangles = vec![[0, 2, 1], [0, 3, 2]];
+    let plane = TargetSurface::new(
+        "ground",
+        TargetSource::Bone(0),
+        positions.clone(),
+        triangles.clone(),
+    );
+    assert!(plane.pseudo_normals.is_empty());
+    let below = Vec3::new(0.3, -0.0015, 0.2);
+    let hit = plane.closest(below, None).unwrap();
+    let settled = plane.settle_side(below, hit, &mut SideMemo::default(), 0);
+    assert_eq!(settled, hit);
+    assert!(hit.signed_distance < 0.0 && hit.normal.y > 0.99);
+    let mut bent = positions;
+    bent[2].y = 0.5;
+    let sheet = TargetSurface::new("bent", TargetSource::Bone(0), bent, triangles);
+    assert!(!sheet.pseudo_normals.is_empty());
+}
