@@ -5,10 +5,30 @@
 //! kept from switching targets, P3 never settled: 192 m/s² RMS surface
 //! acceleration, edges stretched ×21, both muscles crumpled into shards.
 
+use sinew_core::Solver;
 use sinew_core::SolverMethod;
 use sinew_core::analysis::{RunMetrics, Thresholds};
 use sinew_core::scene::{Scene, builtin};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// T5's scene file (the 17-muscle arm).
+fn t5_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron")
+}
+
+/// `scene` (its files found in `dir`) stepped `frames` times, observed
+/// every frame with penetration checked every `penetration_every` (2 mm
+/// deep).
+fn run(scene: &Scene, dir: &Path, frames: u32, penetration_every: u32) -> (Solver, RunMetrics) {
+    let mut solver = scene.instantiate(dir).unwrap();
+    let mut metrics = RunMetrics::new(&solver, 0.002);
+    metrics.penetration_every = penetration_every;
+    for _ in 0..frames {
+        solver.step();
+        metrics.observe(&solver);
+    }
+    (solver, metrics)
+}
 
 #[test]
 fn p3_at_rest_settles_and_keeps_its_shape_with_every_method() {
@@ -16,13 +36,7 @@ fn p3_at_rest_settles_and_keeps_its_shape_with_every_method() {
     for method in methods {
         let mut scene = builtin("P3").unwrap();
         scene.settings.method = method;
-        let mut solver = scene.instantiate(Path::new(".")).unwrap();
-        let mut metrics = RunMetrics::new(&solver, 0.002);
-        metrics.penetration_every = 600;
-        for _ in 0..600 {
-            solver.step();
-            metrics.observe(&solver);
-        }
+        let (solver, metrics) = run(&scene, Path::new("."), 600, 600);
         let rest = metrics.recent_motion_total();
         assert!(
             rest.rms_velocity() < 1e-3,
@@ -68,7 +82,7 @@ fn p3_at_rest_settles_and_keeps_its_shape_with_every_method() {
 /// to ×11 (checked below: the test fails without the hold).
 #[test]
 fn t5_without_its_motion_settles_in_its_shape() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let path = t5_path();
     let text = std::fs::read_to_string(&path).unwrap();
     // Jacobi and Hybrid too: with each particle's mass split among the
     // constraints it averages (see `solver::jacobi`), their edges stay
@@ -88,13 +102,7 @@ fn t5_without_its_motion_settles_in_its_shape() {
             assert!(m.params.hold_shape, "T5's recipe holds {}", m.name);
             m.params.hold_shape = hold;
         }
-        let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
-        let mut metrics = RunMetrics::new(&solver, 0.002);
-        metrics.penetration_every = 240;
-        for _ in 0..240 {
-            solver.step();
-            metrics.observe(&solver);
-        }
+        let (solver, metrics) = run(&scene, path.parent().unwrap(), 240, 240);
         let limits = Thresholds {
             strain: [0.8, 1.25],
             ..Thresholds::default()
@@ -132,15 +140,9 @@ fn t5_without_its_motion_settles_in_its_shape() {
 /// not move, keep theirs. At rest every span is 1.
 #[test]
 fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let path = t5_path();
     let scene = Scene::load(&path).unwrap();
-    let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
-    let mut metrics = RunMetrics::new(&solver, 0.002);
-    metrics.penetration_every = 1000;
-    for _ in 0..150 {
-        solver.step();
-        metrics.observe(&solver);
-    }
+    let (solver, metrics) = run(&scene, path.parent().unwrap(), 150, 1000);
     let span = |name: &str| {
         let i = solver.muscle_index(name).unwrap();
         let now = sinew_core::analysis::attachment_span(&solver.muscles()[i]).unwrap();
@@ -172,18 +174,12 @@ fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
 /// shape, one edge ×5.75 (checked: the test fails so).
 #[test]
 fn t5_comes_back_to_its_rest_shape_after_its_flexions() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let path = t5_path();
     let scene = Scene::load(&path).unwrap();
-    let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
     let limits = Thresholds::default();
     let end = scene.motion_end();
     let frames = ((end + limits.settle) / scene.settings.dt).ceil() as u32 + 1;
-    let mut metrics = RunMetrics::new(&solver, 0.002);
-    metrics.penetration_every = frames;
-    for _ in 0..frames {
-        solver.step();
-        metrics.observe(&solver);
-    }
+    let (solver, metrics) = run(&scene, path.parent().unwrap(), frames, frames);
     let rest: Vec<_> = metrics
         .verdicts(&solver, &limits, end)
         .into_iter()
