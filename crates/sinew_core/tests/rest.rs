@@ -191,3 +191,46 @@ fn t5_comes_back_to_its_rest_shape_after_its_flexions() {
     assert_eq!(rest.len(), 4, "velocity, jiggle, strain and deviation");
     assert!(rest.iter().all(|v| v.pass == Some(true)), "{rest:#?}");
 }
+
+/// T5 through its first flexion to 120° (150 frames): the held shape
+/// follows each muscle's line of action (`hold_frame: Line` in T5's
+/// recipe). Carried by a blend of its bones instead (`HoldFrame::Bones`),
+/// the held shape of a muscle spanning the elbow folds over itself, and
+/// the muscles with it: the elbow's muscles (the anconeus aside, whose
+/// attachments alone stretch it ×2.8) reached an edge ×6.6 (the
+/// brachialis) and 272 folded triangles (each muscle's worst frame,
+/// summed; the biceps' long head 53); along the line ×3.3 (the biceps'
+/// short head) and 190.
+#[test]
+fn t5s_held_shapes_follow_the_line_of_action_through_the_flexion() {
+    use sinew_core::muscle::HoldFrame;
+    const ELBOW: [&str; 10] = [
+        "TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA", "BRD", "PT", "FCR", "ECRL",
+    ];
+    let path = t5_path();
+    let shipped = Scene::load(&path).unwrap();
+    let figures = |scene: &Scene| {
+        let (solver, metrics) = run(scene, path.parent().unwrap(), 150, 1000);
+        let (mut strain, mut folded) = (0.0f32, 0);
+        for name in ELBOW {
+            let i = solver.muscle_index(name).unwrap();
+            strain = strain.max(metrics.strain[i].max.0);
+            folded += metrics.flipped_max[i].0;
+        }
+        (strain, folded)
+    };
+    assert!(
+        shipped
+            .muscles
+            .iter()
+            .all(|m| m.params.hold_frame == HoldFrame::Line)
+    );
+    let mut by_bones = shipped.clone();
+    for m in &mut by_bones.muscles {
+        m.params.hold_frame = HoldFrame::Bones;
+    }
+    let (line, bones) = (figures(&shipped), figures(&by_bones));
+    eprintln!("largest strain, folded triangles: line {line:?}, bones {bones:?}");
+    assert!(line.0 < 4.0 && bones.0 > 5.0, "{line:?} {bones:?}");
+    assert!((line.1 as f32) < 0.8 * bones.1 as f32, "{line:?} {bones:?}");
+}

@@ -150,6 +150,7 @@ fn arm(method: SolverMethod, threads: u32) -> Solver {
             binding: Some(SkinBindingDesc {
                 influences,
                 strength: Vec::new(),
+                holds_shape: false,
             }),
         })
         .unwrap();
@@ -357,6 +358,7 @@ fn bad_bindings_are_refused_by_name() {
                 binding: Some(SkinBindingDesc {
                     influences,
                     strength,
+                    holds_shape: false,
                 }),
             })
             .unwrap_err()
@@ -415,6 +417,7 @@ fn a_bound_skin_with_nothing_below_hangs_on_its_binding() {
             binding: Some(SkinBindingDesc {
                 influences: vec![vec![(0, 1.0)]; n],
                 strength: Vec::new(),
+                holds_shape: false,
             }),
         })
         .unwrap();

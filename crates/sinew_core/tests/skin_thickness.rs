@@ -79,6 +79,7 @@ fn settled(thickness: Option<f32>, method: SolverMethod) -> Solver {
             binding: Some(SkinBindingDesc {
                 influences: vec![vec![(sinking, 1.0)]; n],
                 strength: Vec::new(),
+                holds_shape: false,
             }),
         })
         .unwrap();

@@ -30,6 +30,12 @@ pub struct SkinBindingDesc {
     /// compliance is divided by it; 0 unbinds the vertex). Empty: 1 for
     /// every vertex. Unitless, ≥ 0.
     pub strength: Vec<f32>,
+    /// Made by [`SkinBindingDesc::holding_shape`]: a muscle's held shape
+    /// ([`super::MuscleParams::hold_shape`]), which
+    /// [`super::MuscleParams::hold_frame`] may carry along the muscle's
+    /// line of action instead of these bones. `false` for a skin's
+    /// weights.
+    pub holds_shape: bool,
 }
 
 /// One bound vertex, resolved.
@@ -119,6 +125,7 @@ impl SkinBindingDesc {
         Some(Self {
             influences,
             strength: Vec::new(),
+            holds_shape: true,
         })
     }
 
@@ -218,9 +225,21 @@ pub fn bind_constraints(m: &Muscle) -> PointBatch {
 }
 
 /// Refreshes the Bind goals for bone poses `pose` (before each substep's
-/// projection, with the attachments').
+/// projection, with the attachments'): skinned, or along the muscle's line
+/// of action where its held shape follows one ([`Muscle::hold_line`]).
 pub fn update_bind_goals(m: &mut Muscle, pose: &impl Fn(usize) -> Affine3A) {
-    for (goal, b) in m.constraints.bind.goal.iter_mut().zip(&m.binding) {
-        *goal = b.goal(pose);
+    let goals = m.constraints.bind.goal.iter_mut().zip(&m.binding);
+    match &m.hold_line {
+        Some(line) => {
+            let now = line.pose(pose);
+            for (goal, b) in goals {
+                *goal = line.goal(&now, b.vertex.index());
+            }
+        }
+        None => {
+            for (goal, b) in goals {
+                *goal = b.goal(pose);
+            }
+        }
     }
 }

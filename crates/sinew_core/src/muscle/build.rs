@@ -128,6 +128,13 @@ impl Muscle {
         // Particles.
         let mut rest = mesh.positions.clone();
         rest.extend_from_slice(&structure.points);
+        // A held shape (the binding the solver or this build makes for
+        // `hold_shape`, not a skin's) may follow the line of action.
+        let hold_line = (params.hold_shape && binding.as_ref().is_none_or(|b| b.holds_shape))
+            .then(|| {
+                hold_line::for_frame(params.hold_frame, &mesh.positions, &held, &bone_transform)
+            })
+            .flatten();
         let binding = binding.or_else(|| {
             params
                 .hold_shape
@@ -156,6 +163,7 @@ impl Muscle {
             surface_count: n,
             attachments: Vec::new(),
             binding,
+            hold_line,
             targets,
             constraints: MuscleConstraints::default(),
             maps,

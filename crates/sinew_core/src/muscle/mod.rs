@@ -10,6 +10,7 @@ mod build;
 mod constraints;
 mod desc;
 mod fiber;
+mod hold_line;
 mod internal;
 mod mass;
 mod params;
@@ -22,8 +23,9 @@ pub use constraints::{Compliances, ConstraintCounts, ConstraintKind, MuscleConst
 pub(crate) use desc::held_by;
 pub use desc::{AttachmentDesc, MuscleDesc, Roots, TargetRef, VertexMaps};
 pub use fiber::{fiber_field, longest_axis};
+pub use hold_line::{HoldLine, LinePose};
 pub use internal::{InternalStructure, InternalStructureParams};
-pub use params::{ConnectionWeights, MAX_FIBER_SMOOTHING, MassMode, MuscleParams};
+pub use params::{ConnectionWeights, HoldFrame, MAX_FIBER_SMOOTHING, MassMode, MuscleParams};
 
 use crate::constraints::{ActivationScale, ParticleId, TargetSlot};
 use crate::error::BuildError;
@@ -102,6 +104,10 @@ pub struct Muscle {
     /// Surface vertices bound to bones by skinning weights (see
     /// [`SkinBindingDesc`]), one Bind constraint each.
     pub binding: Vec<BoundVertex>,
+    /// The line of action a held shape follows
+    /// ([`MuscleParams::hold_frame`] [`HoldFrame::Line`]); `None`: the
+    /// binding's bones carry it.
+    pub hold_line: Option<HoldLine>,
     /// Targets, in the order given.
     pub targets: Vec<TargetRef>,
     /// Constraint batches.

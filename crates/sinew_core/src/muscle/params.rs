@@ -152,6 +152,38 @@ pub struct MuscleParams {
     /// `[0.01, 1]`. Default: `1`.
     #[serde(skip_serializing_if = "is_one")]
     pub hold_release: f32,
+    /// What carries a held shape ([`Self::hold_shape`]) with the bones:
+    /// their blend around each vertex, or the muscle's line of action from
+    /// one attachment bone to the other ([`HoldFrame`]). Default:
+    /// [`HoldFrame::Bones`].
+    #[serde(skip_serializing_if = "is_default_hold_frame")]
+    pub hold_frame: HoldFrame,
+}
+
+/// What carries a held shape ([`MuscleParams::hold_shape`]) as the bones
+/// move.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HoldFrame {
+    /// Each vertex's rest position carried by the bones around it, blended
+    /// by the inverse square of its distance to each
+    /// ([`crate::muscle::SkinBindingDesc::holding_shape`]): a muscle that
+    /// lies along its bones and moves with them.
+    #[default]
+    Bones,
+    /// The rest surface carried by the muscle's line of action — from the
+    /// centroid of its attachments on one bone to those on another —
+    /// stretched along the line and thinned across it as the line
+    /// lengthens, its twist graded from one end's bone to the other's
+    /// ([`crate::muscle::HoldLine`]): a muscle that spans a joint and
+    /// takes the chord when it bends, folding nothing where the bones'
+    /// blend would fold its surface over itself. A muscle held on one bone
+    /// only keeps [`HoldFrame::Bones`].
+    Line,
+}
+
+/// Whether `frame` is the default (left out of scene files).
+fn is_default_hold_frame(frame: &HoldFrame) -> bool {
+    *frame == HoldFrame::default()
 }
 
 /// Whether `mode` is the default (left out of scene files).
@@ -195,6 +227,7 @@ impl Default for MuscleParams {
             fiber_smoothing: 3,
             hold_shape: false,
             hold_release: 1.0,
+            hold_frame: HoldFrame::Bones,
         }
     }
 }

@@ -52,6 +52,7 @@ impl SkinBindingSpec {
         Ok(SkinBindingDesc {
             influences,
             strength: self.strength.clone(),
+            holds_shape: false,
         })
     }
 }
