@@ -96,7 +96,7 @@ impl HoldLine {
             LineEnd {
                 bone,
                 local: rest.inverse().transform_point3(centroid),
-                rest_rotation_inv: Quat::from_mat3a(&rest.matrix3).normalize().inverse(),
+                rest_rotation_inv: rotation_of(&rest).inverse(),
             }
         };
         let origin = centroids[i].1;
@@ -125,8 +125,7 @@ impl HoldLine {
         let axis = if length > 0.0 { d / length } else { self.axis };
         let stretch = (length / self.length).clamp(1.0 / MAX_STRETCH, MAX_STRETCH);
         let turn = |e: &LineEnd| {
-            let r = (Quat::from_mat3a(&pose(e.bone).matrix3).normalize() * e.rest_rotation_inv)
-                .normalize();
+            let r = (rotation_of(&pose(e.bone)) * e.rest_rotation_inv).normalize();
             (Quat::from_rotation_arc(r * self.axis, axis) * r).normalize()
         };
         let rotations = [turn(&self.ends[0]), turn(&self.ends[1])];
@@ -157,6 +156,12 @@ pub struct LinePose {
     rotations: [Quat; 2],
     along: f32,
     across: f32,
+}
+
+/// The rotation of a bone's pose (a fitted skeleton's bones may carry a
+/// scale).
+fn rotation_of(pose: &Affine3A) -> Quat {
+    pose.to_scale_rotation_translation().1.normalize()
 }
 
 /// The line a muscle built with `frame` holds its shape about, if any.
@@ -240,6 +245,13 @@ mod tests {
             (g.x + half).abs() < 1e-5 && (g.z - half).abs() < 1e-5,
             "{g}"
         );
+    }
+
+    #[test]
+    fn a_scaled_bone_turns_the_line_by_its_rotation_alone() {
+        let turn = Quat::from_rotation_y(0.7);
+        let pose = Affine3A::from_scale_rotation_translation(Vec3::splat(1.5), turn, Vec3::X);
+        assert!(rotation_of(&pose).angle_between(turn) < 1e-5);
     }
 
     #[test]
