@@ -4,11 +4,14 @@
 //! simulation has run `SINEW_SCREENSHOT_FRAME` steps (default 90) with
 //! every scene spawned and every muscle built, and exits ten frames later
 //! — how CI and the README's pictures capture the examples under Xvfb.
-//! Without the variable it does nothing.
+//! Without the variable it does nothing. The panel's solver readout (the
+//! last step and the median over [`SinewTimings::history`], and the thread
+//! setting) goes to the log as the screenshot is taken, for scripts that
+//! compare runs.
 
 use crate::components::{Muscle, MuscleState};
 use crate::scene::SpawnedScene;
-use crate::settings::SinewClock;
+use crate::settings::{SinewClock, SinewSettings, SinewTimings};
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 
@@ -50,6 +53,8 @@ fn take_screenshot(
     mut ready_at: Local<Option<u64>>,
     mut taken: Local<Option<u32>>,
     mut exit: MessageWriter<AppExit>,
+    timings: Option<Res<SinewTimings>>,
+    settings: Option<Res<SinewSettings>>,
 ) {
     *frames += 1;
     if ready_at.is_none() && building.is_empty() && scenes.iter().all(|s| s.done) {
@@ -63,6 +68,17 @@ fn take_screenshot(
             commands
                 .spawn(Screenshot::primary_window())
                 .observe(save_to_disk(request.path.clone()));
+            // The panel's solver readout, in the log as well as the picture.
+            if let (Some(t), Some(s)) = (timings, settings) {
+                info!(
+                    "screenshot at frame {}: solver {:.3} ms, median {:.3} ms over the last {} steps, threads {}",
+                    clock.frame,
+                    t.total.as_secs_f64() * 1e3,
+                    t.median_total_ms().unwrap_or(0.0),
+                    t.history.len(),
+                    s.threads
+                );
+            }
             *taken = Some(*frames);
         }
         Some(t) if *frames > t + 10 => {

@@ -264,6 +264,24 @@ impl SinewTimings {
         StepTimings::NAMES.into_iter().zip(self.step.as_array())
     }
 
+    /// The median of the steps' totals over [`SinewTimings::history`], in
+    /// ms (`None` before the first step): the steady figure the panel shows
+    /// beside the last step, which one slow step (a link, an OS hitch)
+    /// would otherwise make flicker.
+    pub fn median_total_ms(&self) -> Option<f32> {
+        let mut totals: Vec<f32> = self.history.iter().map(|b| b.iter().sum()).collect();
+        if totals.is_empty() {
+            return None;
+        }
+        totals.sort_by(f32::total_cmp);
+        let mid = totals.len() / 2;
+        Some(if totals.len() % 2 == 1 {
+            totals[mid]
+        } else {
+            0.5 * (totals[mid - 1] + totals[mid])
+        })
+    }
+
     /// Closes a step: sums the blocks and pushes them to the history.
     pub(crate) fn finish_step(&mut self) {
         self.total = self.step.total();
@@ -278,5 +296,26 @@ impl SinewTimings {
     pub(crate) fn start_step(&mut self) {
         self.step = StepTimings::default();
         self.total = Duration::ZERO;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_median_step_is_the_middle_total_of_the_history() {
+        let mut t = SinewTimings::default();
+        assert_eq!(t.median_total_ms(), None);
+        // Totals 3, 1, 100 (one slow step) and 2 ms: blocks of each step
+        // add up to its total.
+        for total in [[1.0, 2.0], [0.5, 0.5], [90.0, 10.0], [2.0, 0.0]] {
+            let mut b = [0.0f32; 7];
+            b[..2].copy_from_slice(&total);
+            t.history.push_back(b);
+        }
+        assert_eq!(t.median_total_ms(), Some(2.5));
+        t.history.pop_back();
+        assert_eq!(t.median_total_ms(), Some(3.0));
     }
 }

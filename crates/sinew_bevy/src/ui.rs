@@ -177,10 +177,11 @@ fn controls(
         }
     });
     let ms = timings.total.as_secs_f64() * 1e3;
-    let fps = if ms > 0.0 { 1e3 / ms } else { 0.0 };
+    let median = timings.median_total_ms().unwrap_or(0.0);
+    let fps = if median > 0.0 { 1e3 / median } else { 0.0 };
     ui.label(format!(
-        "frame {}   t = {:.3} s   solver {:.2} ms ({:.0} fps)",
-        clock.frame, clock.time, ms, fps
+        "frame {}   t = {:.3} s   solver {:.2} ms, median {:.2} ms ({:.0} fps)",
+        clock.frame, clock.time, ms, median, fps
     ));
 }
 
