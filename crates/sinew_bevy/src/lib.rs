@@ -344,6 +344,7 @@ impl Plugin for SinewPlugin {
             .init_resource::<save::SavedScenes>()
             .add_message::<ResetSimulation>()
             .add_message::<events::MuscleBuilt>()
+            .add_observer(settings::restart_timing_history)
             .add_message::<events::MuscleBuildFailed>()
             .add_message::<events::SettingsRejected>()
             .add_message::<events::MuscleAttached>()

@@ -154,6 +154,7 @@ pub(crate) fn spawn_scenes(
     mut roots: Query<(Entity, &SinewSceneRoot, &mut SpawnedScene)>,
     assets: Option<Res<Assets<SinewScene>>>,
     mut settings: ResMut<SinewSettings>,
+    mut timings: Option<ResMut<crate::SinewTimings>>,
 ) {
     for (root, source, mut spawned) in &mut roots {
         if spawned.done {
@@ -173,6 +174,11 @@ pub(crate) fn spawn_scenes(
             .entity(root)
             .insert_if_new((Visibility::default(), InheritedVisibility::default()));
         *spawned = spawn(&mut commands, root, scene);
+        // The panel's chart and median cover the scene as it runs, not the
+        // steps taken before it spawned.
+        if let Some(timings) = timings.as_mut() {
+            timings.restart_history();
+        }
     }
 }
 
