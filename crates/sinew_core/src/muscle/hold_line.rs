@@ -16,7 +16,8 @@
 //!
 //! The map is a rotation and a volume-keeping stretch (×s along, ×1/√s
 //! across) with a twist graded from one end to the other: it folds
-//! nothing and strains the edges between ×s and ×1/√s. The bones' blend
+//! nothing and strains the edges between ×s and ×1/√s, but for the shear
+//! of that twist. The bones' blend
 //! ([`HoldFrame::Bones`]) carries each vertex with the bones it lies near,
 //! which at a bent joint folds the surface over itself (linear-blend
 //! skinning's collapse) and stretches the far side: on T5 at 120° of
