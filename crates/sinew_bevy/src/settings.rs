@@ -269,17 +269,24 @@ impl SinewTimings {
     /// beside the last step, which one slow step (a link, an OS hitch)
     /// would otherwise make flicker.
     pub fn median_total_ms(&self) -> Option<f32> {
-        let mut totals: Vec<f32> = self.history.iter().map(|b| b.iter().sum()).collect();
+        let totals = self.sorted_totals_ms();
         if totals.is_empty() {
             return None;
         }
-        totals.sort_by(f32::total_cmp);
         let mid = totals.len() / 2;
         Some(if totals.len() % 2 == 1 {
             totals[mid]
         } else {
             0.5 * (totals[mid - 1] + totals[mid])
         })
+    }
+
+    /// The steps' totals over [`SinewTimings::history`] in ms, smallest
+    /// first (the panel's median and its chart's scale).
+    pub fn sorted_totals_ms(&self) -> Vec<f32> {
+        let mut totals: Vec<f32> = self.history.iter().map(|b| b.iter().sum()).collect();
+        totals.sort_by(f32::total_cmp);
+        totals
     }
 
     /// Starts the history again (the chart and the median then cover only

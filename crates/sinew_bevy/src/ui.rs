@@ -256,8 +256,7 @@ fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {
     let history = &timings.history;
     // Scale to the 95th percentile: a scene's first frame (links, colour
     // groups) would flatten everything else.
-    let mut totals: Vec<f32> = history.iter().map(|b| b.iter().sum::<f32>()).collect();
-    totals.sort_by(f32::total_cmp);
+    let totals = timings.sorted_totals_ms();
     let peak = totals
         .get(totals.len() * 95 / 100)
         .map_or(0.1, |p| (p * 1.2).max(0.1));

@@ -113,30 +113,19 @@ pub fn belly_cross_section(solver: &Solver, muscle: usize) -> f32 {
 /// this much on average, whatever the solver does. `None` for a muscle
 /// attached to fewer than two bones.
 pub fn attachment_span(m: &Muscle) -> Option<f32> {
-    // (bone, centroid now, centroid at rest), summed then divided.
-    let mut groups: Vec<(Option<usize>, Vec3, Vec3, f32)> = Vec::new();
-    for a in &m.attachments {
-        let v = a.vertex.index();
-        match groups.iter_mut().find(|g| g.0 == a.bone) {
-            Some(g) => {
-                g.1 += m.x[v];
-                g.2 += m.rest[v];
-                g.3 += 1.0;
-            }
-            None => groups.push((a.bone, m.x[v], m.rest[v], 1.0)),
-        }
-    }
-    let centroids: Vec<(Vec3, Vec3)> = groups.iter().map(|g| (g.1 / g.3, g.2 / g.3)).collect();
-    let mut farthest: Option<(f32, f32)> = None;
-    for (i, a) in centroids.iter().enumerate() {
-        for b in &centroids[i + 1..] {
-            let (now, rest) = (a.0.distance(b.0), a.1.distance(b.1));
-            if rest > 0.0 && farthest.is_none_or(|(r, _)| rest > r) {
-                farthest = Some((rest, now));
-            }
-        }
-    }
-    farthest.map(|(rest, now)| now / rest)
+    let groups = |positions: &[Vec3]| -> Vec<Vec3> {
+        let points = m
+            .attachments
+            .iter()
+            .map(|a| (a.bone, positions[a.vertex.index()]));
+        crate::muscle::group_centroids(points)
+            .into_iter()
+            .map(|g| g.1)
+            .collect()
+    };
+    let (rest, i, j) = crate::muscle::farthest_pair(&groups(&m.rest))?;
+    let now = groups(&m.x);
+    Some(now[i].distance(now[j]) / rest)
 }
 
 /// Distance of every attached vertex from its bone point. Units: m (scene

@@ -69,29 +69,12 @@ impl HoldLine {
         held: &[(Option<usize>, u32)],
         bone_transform: &impl Fn(usize) -> Affine3A,
     ) -> Option<Self> {
-        let mut groups: Vec<(usize, Vec3, f32)> = Vec::new();
-        for &(bone, v) in held {
-            let Some(bone) = bone else { continue };
-            let x = positions[v as usize];
-            match groups.iter_mut().find(|g| g.0 == bone) {
-                Some(g) => {
-                    g.1 += x;
-                    g.2 += 1.0;
-                }
-                None => groups.push((bone, x, 1.0)),
-            }
-        }
-        let centroids: Vec<(usize, Vec3)> = groups.iter().map(|g| (g.0, g.1 / g.2)).collect();
-        let mut farthest: Option<(f32, usize, usize)> = None;
-        for i in 0..centroids.len() {
-            for j in i + 1..centroids.len() {
-                let d = centroids[i].1.distance(centroids[j].1);
-                if d > 0.0 && farthest.is_none_or(|(best, _, _)| d > best) {
-                    farthest = Some((d, i, j));
-                }
-            }
-        }
-        let (length, i, j) = farthest?;
+        let centroids = super::group_centroids(
+            held.iter()
+                .filter_map(|&(bone, v)| Some((bone?, positions[v as usize]))),
+        );
+        let points: Vec<Vec3> = centroids.iter().map(|c| c.1).collect();
+        let (length, i, j) = super::farthest_pair(&points)?;
         let end = |(bone, centroid): (usize, Vec3)| {
             let rest = bone_transform(bone);
             LineEnd {

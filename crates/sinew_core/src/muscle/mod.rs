@@ -5,6 +5,7 @@
 //! the solver once every target exists; what the solver derives from a
 //! muscle lives in its workspace, not here.
 
+mod attachment_groups;
 mod binding;
 mod build;
 mod constraints;
@@ -16,6 +17,7 @@ mod mass;
 mod params;
 mod tuning;
 
+pub(crate) use attachment_groups::{farthest_pair, group_centroids};
 pub use binding::{BoundVertex, MAX_BONES, SkinBindingDesc, bind_constraints, update_bind_goals};
 pub use build::{area_triangles, branch_links, fiber_edges, internal_links};
 pub(crate) use constraints::{BATCHED_KINDS, MuscleLambdas};
