@@ -116,7 +116,8 @@ pub(crate) fn begin_substep(
     let workers = &mut *workers;
     let pairs = muscles.iter_mut().map(pair);
     workers.pairs.with(pairs, |muscles| {
-        passes::begin_substep_all(&workers.pool, muscles, &ctx.substep);
+        // The goals were moved above, from each muscle's cached bone poses.
+        passes::begin_substep_all(&workers.pool, muscles, &ctx.substep, |_| {});
     });
     watch.lap(&mut timings.step.integrate);
 }

@@ -10,16 +10,19 @@
 //! publish_all          the snapshots other muscles read
 //! iterate_all          closest data and projection, by muscle or by colour
 //! end_substep_all      v = (p − x)/h, x = p
+//! guard_all            after the frame: a muscle that blew up is put back
 //! ```
 
 use super::coloring::PlanKind;
+use super::guard::{Fault, guard};
 use super::parallel::{MusclePair, WorkerPool, for_each_muscle, sweeps_by_color_pay};
-use super::params::{IterationParams, SubstepParams};
+use super::params::{FrameParams, IterationParams, SubstepParams};
 use super::pipeline;
 use super::sweep;
 use super::timings::{StepTimings, Stopwatch, TaskSplit};
 use crate::closest::{TargetSet, TargetSurface};
 use crate::muscle::Muscle;
+use std::sync::Mutex;
 
 /// Muscles above which activations are updated in parallel (their rest
 /// lengths: a few µs per muscle).
@@ -43,16 +46,67 @@ pub fn update_activations(
 }
 
 /// [`pipeline::begin_substep`] for every muscle (on the pool when the
-/// step's particle passes are parallel).
-pub fn begin_substep_all(pool: &WorkerPool, muscles: &mut [MusclePair], sub: &SubstepParams) {
+/// step's particle passes are parallel), each after `goals(muscle)` in the
+/// same task: a driver that can pose the bones from any thread moves the
+/// attachment goals there ([`pipeline::update_attachment_goals`]); one
+/// that cannot has moved them before and passes a closure that does
+/// nothing.
+pub fn begin_substep_all(
+    pool: &WorkerPool,
+    muscles: &mut [MusclePair],
+    sub: &SubstepParams,
+    goals: impl Fn(&mut Muscle) + Sync + Send,
+) {
     let pool = pool.when(sub.frame.parallelism.particles);
-    for_each_muscle(pool, muscles, |m, ws| pipeline::begin_substep(m, ws, sub));
+    for_each_muscle(pool, muscles, |m, ws| {
+        goals(m);
+        pipeline::begin_substep(m, ws, sub);
+    });
 }
 
 /// [`pipeline::end_substep`] for every muscle.
 pub fn end_substep_all(pool: &WorkerPool, muscles: &mut [MusclePair], sub: &SubstepParams) {
     let pool = pool.when(sub.frame.parallelism.particles);
     for_each_muscle(pool, muscles, |m, ws| pipeline::end_substep(m, ws, sub));
+}
+
+/// The run-time [`guard`] of every muscle after frame `frame` (on the pool
+/// when the step's particle passes are parallel: it reads and copies every
+/// particle's position and velocity). `max_speed` is in scene units per
+/// second, `length_unit` the scene's. The faults found are appended to
+/// `faults` in muscle order (a fault's `muscle` is its index in `muscles`),
+/// whatever thread found them.
+pub fn guard_all(
+    pool: &WorkerPool,
+    muscles: &mut [MusclePair],
+    frame: &FrameParams,
+    max_speed: f32,
+    length_unit: f32,
+    faults: &mut Vec<Fault>,
+) {
+    use rayon::prelude::*;
+    let first_new = faults.len();
+    let order = frame.order.as_slice();
+    let found = Mutex::new(&mut *faults);
+    let check = |i: usize, (m, ws): &mut MusclePair| {
+        let frame_number = frame.frame + 1;
+        if let Some(f) = guard(m, ws, frame_number, i, max_speed, length_unit, order) {
+            found.lock().expect("not poisoned").push(f);
+        }
+    };
+    match pool.when(frame.parallelism.particles) {
+        Some(pool) if muscles.len() > 1 => pool.install(|| {
+            muscles
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(i, pair)| check(i, pair));
+        }),
+        _ => muscles
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, pair)| check(i, pair)),
+    }
+    faults[first_new..].sort_by_key(|f| f.muscle);
 }
 
 /// [`pipeline::publish`] for every (snapshot, muscle) pair: the muscles

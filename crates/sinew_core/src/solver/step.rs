@@ -8,6 +8,7 @@ use super::pipeline;
 use super::timings::{StepTimings, Stopwatch};
 use crate::animation::interpolate_rigid;
 use crate::closest::TargetSource;
+use crate::muscle::Muscle;
 use glam::Affine3A;
 use std::sync::Mutex;
 
@@ -56,26 +57,29 @@ impl Solver {
         self.timings = timings;
     }
 
-    /// The run-time guard over every muscle ([`super::guard()`]): a muscle
-    /// that blew up is put back to its last good frame and reported.
+    /// The run-time guard over every muscle ([`passes::guard_all`]): a
+    /// muscle that blew up is put back to its last good frame and reported.
     fn guard_muscles(&mut self, frame: &FrameParams) {
         let unit = self.valid.length_unit;
         let max_speed = self.valid.max_speed * unit;
-        for (i, (m, ws)) in self
-            .muscles
-            .iter_mut()
-            .zip(&mut self.workspaces)
-            .enumerate()
-        {
-            let order = frame.order.as_slice();
-            if let Some(fault) = super::guard(m, ws, self.frame, i, max_speed, unit, order) {
-                if fault.count == 1 {
-                    self.warnings.push(fault.to_string());
-                }
-                self.fault_history.0 += 1;
-                self.fault_history.1.get_or_insert_with(|| fault.clone());
-                self.faults.push(fault);
+        let first_new = self.faults.len();
+        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
+        self.pairs.with(pairs, |muscles| {
+            passes::guard_all(
+                &self.pool,
+                muscles,
+                frame,
+                max_speed,
+                unit,
+                &mut self.faults,
+            );
+        });
+        for fault in &self.faults[first_new..] {
+            if fault.count == 1 {
+                self.warnings.push(fault.to_string());
             }
+            self.fault_history.0 += 1;
+            self.fault_history.1.get_or_insert_with(|| fault.clone());
         }
     }
 
@@ -168,16 +172,15 @@ impl Solver {
         }
     }
 
-    /// Attachment goals, integration, pins, λ = 0 for every muscle.
+    /// Attachment goals, integration, pins, λ = 0 for every muscle, each
+    /// muscle in one task.
     fn begin_substep(&mut self, sub: &SubstepParams) {
         let poses = &self.substep_poses;
         let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
-        for m in &mut self.muscles {
-            pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
-        }
+        let goals = |m: &mut Muscle| pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
         let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
         self.pairs.with(pairs, |muscles| {
-            passes::begin_substep_all(&self.pool, muscles, sub);
+            passes::begin_substep_all(&self.pool, muscles, sub, goals);
         });
     }
 
