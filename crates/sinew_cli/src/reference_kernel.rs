@@ -8,15 +8,16 @@
 //!
 //! The constraints form a chain: constraint `i` joins particles `i` and
 //! `i + 1`, so the even ones share no particle, nor do the odd ones — two
-//! colours, each swept in chunks of [`CHUNK_CONSTRAINTS`] that threads take
-//! whole, one fork and join per colour, as sinew's colour sweeps do.
+//! colours, each swept in chunks of [`TASK_CONSTRAINTS`] that threads take
+//! whole, one fork and join per colour, as sinew's colour sweeps take a
+//! colour with chunks enough for every thread.
 //! Positions are three `f32` arrays, and within a colour the particles are
 //! read in order: the friendliest memory pattern a sweep can have, so the
 //! ratio to it is an upper bound of sinew's overhead.
 
 use crate::bench::median;
 use rayon::prelude::*;
-use sinew_core::solver::coloring::CHUNK_CONSTRAINTS;
+use sinew_core::solver::coloring::TASK_CONSTRAINTS;
 use std::time::Instant;
 
 /// The chain's state, structure of arrays.
@@ -80,13 +81,13 @@ fn project(
 }
 
 /// One iteration: colour 0 (even constraints), then colour 1 (odd), each in
-/// chunks of [`CHUNK_CONSTRAINTS`] constraints, in parallel on the current
+/// chunks of [`TASK_CONSTRAINTS`] constraints, in parallel on the current
 /// pool when `parallel`. Chunk `k` of colour `c` holds the chain's
 /// constraints `c + k·span ..` below `(k + 1)·span` (span = twice the chunk
 /// size) and the particles from `c + k·span` on: contiguous ranges that no
 /// other chunk of the colour touches.
 fn iterate(chain: &mut Chain, alpha: f32, parallel: bool) {
-    let span = 2 * CHUNK_CONSTRAINTS;
+    let span = 2 * TASK_CONSTRAINTS;
     for c in 0..2 {
         let Chain {
             x,

@@ -198,6 +198,16 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
         if let Some(plan) = s.workspaces()[0].plan() {
             let chunks = (0..plan.color_count()).map(|c| plan.chunk_count(c)).max();
             assert!(chunks > Some(1), "{method:?}: no colour was split");
+            // Colours of a thousand constraints and more run in parallel.
+            let sweep = plan.sweep();
+            let sizes: Vec<usize> = (0..sweep.color_count())
+                .map(|c| sweep.color_op_count(c))
+                .collect();
+            assert_eq!(sizes.iter().sum::<usize>(), sweep.op_count());
+            let large = sizes
+                .iter()
+                .any(|&n| n >= super::coloring::TASK_CONSTRAINTS);
+            assert!(large, "{method:?}: no colour large enough to split");
         }
         let bits: Vec<u32> =
             m.x.iter()

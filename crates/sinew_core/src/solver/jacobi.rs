@@ -20,7 +20,7 @@
 //! the result is the same for any thread count.
 
 use super::coloring::{
-    CHUNK_CONSTRAINTS, ConstraintRef, commit, constraints_in_order, correction, particles_of,
+    ConstraintRef, TASK_CONSTRAINTS, commit, constraints_in_order, correction, particles_of,
 };
 use super::constraint_ref::correction_with_weights;
 use crate::constraints::Correction;
@@ -143,7 +143,7 @@ pub fn project_jacobi(
                 .corrections
                 .par_iter_mut()
                 .zip(state.jacobi.par_iter())
-                .with_min_len(CHUNK_CONSTRAINTS)
+                .with_min_len(TASK_CONSTRAINTS)
                 .for_each(compute);
         } else {
             state
@@ -182,7 +182,7 @@ pub fn project_jacobi(
     if parallel {
         m.p.par_iter_mut()
             .enumerate()
-            .with_min_len(CHUNK_CONSTRAINTS)
+            .with_min_len(TASK_CONSTRAINTS)
             .for_each(gather);
     } else {
         m.p.iter_mut().enumerate().for_each(gather);

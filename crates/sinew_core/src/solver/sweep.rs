@@ -29,6 +29,7 @@
     reason = "threads write disjoint entries of one slice; the disjointness is checked here"
 )]
 
+use super::coloring::{CHUNK_CONSTRAINTS, TASK_CONSTRAINTS};
 use crate::constraints::{BatchFn, ConstraintBatch, Gathered, Particles};
 use crate::muscle::{BATCHED_KINDS, ConstraintCounts, ConstraintKind, MuscleLambdas};
 use crate::muscle::{Muscle, MuscleConstraints};
@@ -163,6 +164,16 @@ impl SweepPlan {
     /// Chunks of colour `c`.
     pub fn chunk_count(&self, c: usize) -> usize {
         (self.chunk_colors[c + 1] - self.chunk_colors[c]) as usize
+    }
+
+    /// Constraints colour `c` runs.
+    pub fn color_op_count(&self, c: usize) -> usize {
+        let first = self.chunk_segments[self.chunk_colors[c] as usize] as usize;
+        let last = self.chunk_segments[self.chunk_colors[c + 1] as usize] as usize;
+        self.segments[first..last]
+            .iter()
+            .map(|s| (s.end - s.start) as usize)
+            .sum()
     }
 
     /// Constraints the sweeps run (switched-off ones are left out).
@@ -345,13 +356,20 @@ impl<'a> MuscleSweep<'a> {
         }
     }
 
-    /// Runs colour `color`, its chunks in parallel when `parallel`.
+    /// Runs colour `color`, its chunks in parallel when `parallel` and the
+    /// colour holds at least [`TASK_CONSTRAINTS`] constraints (a smaller
+    /// one costs less on one thread than its fork and join): a task takes
+    /// one chunk when the colour has no more chunks than threads, else up
+    /// to [`TASK_CONSTRAINTS`] worth of them.
     fn run_color(&self, color: usize, parallel: bool) {
         use rayon::prelude::*;
         let chunks = self.plan.chunk_count(color);
-        if parallel && chunks > 1 {
+        if parallel && chunks > 1 && self.plan.color_op_count(color) >= TASK_CONSTRAINTS {
+            let most = TASK_CONSTRAINTS / CHUNK_CONSTRAINTS;
+            let per_task = (chunks / rayon::current_num_threads()).clamp(1, most);
             (0..chunks)
                 .into_par_iter()
+                .with_min_len(per_task)
                 .for_each(|k| self.run_chunk(color, k));
         } else {
             (0..chunks).for_each(|k| self.run_chunk(color, k));
