@@ -323,19 +323,37 @@ impl TargetSurface {
     /// muscles sliding on it keep its last finite surface, and the run-time
     /// guard ([`crate::solver::guard()`]) puts the muscle back.
     pub fn publish(&mut self, positions: &[Vec3]) {
-        // One pass finds the slack and, with a NaN-propagating maximum, a
-        // non-finite position (its distance is NaN or infinite).
-        let moved = positions
-            .iter()
-            .zip(&self.fitted)
-            .map(|(p, f)| p.distance_squared(*f))
-            .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m });
+        let moved = self.moved_squared(positions);
         if !moved.is_finite() {
             return;
         }
         self.positions.clear();
         self.positions.extend_from_slice(positions);
         self.slack = moved.sqrt();
+    }
+
+    /// The largest squared distance of `positions` from those the BVH was
+    /// fitted to (the slack squared), NaN or infinite when a position is
+    /// not finite: one pass with a NaN-propagating maximum.
+    pub fn moved_squared(&self, positions: &[Vec3]) -> f32 {
+        positions
+            .iter()
+            .zip(&self.fitted)
+            .map(|(p, f)| p.distance_squared(*f))
+            .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m })
+    }
+
+    /// [`TargetSurface::publish`] of positions staged beforehand, with
+    /// their [`TargetSurface::moved_squared`]: the staged buffer and the
+    /// snapshot's swap (no copy), the same snapshot and slack as
+    /// publishing the positions. Nothing when they are not finite (the
+    /// buffer keeps them).
+    pub fn publish_staged(&mut self, positions: &mut Vec<Vec3>, moved_squared: f32) {
+        if !moved_squared.is_finite() || positions.len() != self.positions.len() {
+            return;
+        }
+        std::mem::swap(&mut self.positions, positions);
+        self.slack = moved_squared.sqrt();
     }
 
     /// Recomputes the vertex normals from the current positions. The solver

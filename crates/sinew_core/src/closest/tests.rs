@@ -77,3 +77,30 @@ fn full_search_stays_exact_on_a_moved_target_before_refit() {
     t.refit(true);
     assert_eq!(t.slack, 0.0);
 }
+
+#[test]
+fn a_staged_publish_gives_the_snapshot_and_slack_of_a_copying_one() {
+    let moved: Vec<Vec3> = ellipsoid_target()
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| *p * 1.02 + 0.001 * jitter(i))
+        .collect();
+    let mut copied = ellipsoid_target();
+    copied.publish(&moved);
+    let mut swapped = ellipsoid_target();
+    let mut staged = moved.clone();
+    let slack = swapped.moved_squared(&staged);
+    swapped.publish_staged(&mut staged, slack);
+    assert_eq!(swapped.positions, copied.positions);
+    assert_eq!(swapped.slack.to_bits(), copied.slack.to_bits());
+    assert!(swapped.slack > 0.0);
+    // A staged surface that is not finite is not published: the muscles
+    // sliding on it keep its last finite one.
+    let mut bad = moved.clone();
+    bad[3].x = f32::NAN;
+    let bad_slack = swapped.moved_squared(&bad);
+    swapped.publish_staged(&mut bad, bad_slack);
+    assert_eq!(swapped.positions, moved);
+    assert!(bad[3].x.is_nan(), "the buffer keeps what was staged");
+}

@@ -559,6 +559,16 @@ impl Solver {
             .into_iter()
             .filter(|&t| matches!(self.targets[t].source, TargetSource::Muscle(_)))
             .collect();
+        // A published muscle stages its snapshot in its own iterate task.
+        for ws in &mut self.workspaces {
+            ws.staged.target = None;
+            ws.staged.ready = false;
+        }
+        for &t in &self.published {
+            if let TargetSource::Muscle(m) = self.targets[t].source {
+                self.workspaces[m].staged.target = Some(TargetId::new(t));
+            }
+        }
         self.links_dirty = false;
     }
 }

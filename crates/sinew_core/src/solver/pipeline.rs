@@ -11,6 +11,9 @@
 //!                                                        sweep(m, ws, it)  the method's pass
 //!                                                        finish(m, ws, targets, it)
 //!                                                          Hybrid tail, Volume, bone contacts
+//!                                                        stage_snapshot(m, ws, targets)
+//!                                                          the next iteration's snapshot,
+//!                                                          when the driver stages
 //!                    (by colour: closest(..) of every muscle, then colour c of every
 //!                     muscle's plan_for(..) for each c, then finish(..) of every muscle)
 //!                    end_substep(m, ws, s)             v = (p − x)/h, x = p
@@ -99,7 +102,25 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
     let middle = timer.lap(start, 0);
     sweep(m, ws, p);
     finish(m, ws, targets, p);
+    stage_snapshot(m, ws, targets);
     timer.lap(middle, 1);
+}
+
+/// Stages `m`'s surface for its snapshot in the next iteration, in the
+/// muscle's own task, when the driver publishes by staging (it has set the
+/// muscle's own target in the workspace; the plain solver does for every
+/// muscle another targets): the copy and the slack's pass over the
+/// vertices move into the task, and the driver's publish becomes a swap of
+/// buffers (see [`crate::closest::TargetSurface::publish_staged`]).
+pub fn stage_snapshot<T: TargetSet + ?Sized>(m: &Muscle, ws: &mut MuscleWorkspace, targets: &T) {
+    let staged = &mut ws.staged;
+    let Some(id) = staged.target else {
+        return;
+    };
+    staged.positions.clear();
+    staged.positions.extend_from_slice(&m.p[..m.surface_count]);
+    staged.moved_squared = targets.target(id).moved_squared(&staged.positions);
+    staged.ready = true;
 }
 
 /// Closest data of `m` for iteration `p` (BE5), when `m` runs it.

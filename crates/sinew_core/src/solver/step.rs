@@ -192,8 +192,25 @@ impl Solver {
         });
     }
 
-    /// Publishes the targeted muscles' predictions as their snapshots.
+    /// Publishes the targeted muscles' predictions as their snapshots: in
+    /// a substep's first iteration by a pass over them (the frame's first
+    /// also updates normals, BVHs and inverse masses), in the others by
+    /// swapping in what each muscle's task staged at the end of the
+    /// iteration before ([`pipeline::stage_snapshot`]: the same positions
+    /// and slack, without a pass of its own on the threads).
     fn publish(&mut self, it: &IterationParams) {
+        if !it.first_of_substep() {
+            for &t in &self.published {
+                if let TargetSource::Muscle(m) = self.targets[t].source {
+                    let staged = &mut self.workspaces[m].staged;
+                    if std::mem::take(&mut staged.ready) {
+                        let moved = staged.moved_squared;
+                        self.targets[t].publish_staged(&mut staged.positions, moved);
+                    }
+                }
+            }
+            return;
+        }
         let (published, muscles) = (&self.published, &self.muscles);
         let snapshots = self
             .targets

@@ -133,6 +133,26 @@ pub struct MuscleWorkspace {
     pub(crate) momentum: Option<RigidMomentum>,
     /// The muscle's last good frame, for the run-time guard.
     pub(crate) last_good: super::guard::LastGood,
+    /// The muscle's snapshot for the next iteration, staged by its own task
+    /// ([`super::pipeline::stage_snapshot`]) when the driver asks.
+    pub(crate) staged: StagedSnapshot,
+}
+
+/// A muscle's surface positions staged for its snapshot at the end of its
+/// iteration's task, so that the driver publishes the next iteration's
+/// snapshots by swapping buffers, with no pass over the muscles (a fork and
+/// join on the threads) of its own.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct StagedSnapshot {
+    /// The driver's index of the muscle's own target, when others target
+    /// it and the driver publishes by staging (`None`: it does not).
+    pub target: Option<TargetId>,
+    /// The surface positions.
+    pub positions: Vec<Vec3>,
+    /// Their [`crate::closest::TargetSurface::moved_squared`].
+    pub moved_squared: f32,
+    /// Staged since the last publish.
+    pub ready: bool,
 }
 
 impl MuscleWorkspace {
