@@ -43,6 +43,7 @@ use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 mod bvh;
 mod faces;
 mod side;
+mod snapshot;
 mod walk;
 mod winding;
 
@@ -268,13 +269,6 @@ impl TargetSurface {
         }
     }
 
-    /// Sets the inverse masses of a deforming target's vertices (its
-    /// muscle's particles), for [`TargetSurface::point_inverse_mass`].
-    pub fn set_inverse_masses(&mut self, inverse_mass: &[f32]) {
-        self.inverse_mass.clear();
-        self.inverse_mass.extend_from_slice(inverse_mass);
-    }
-
     /// The generalised inverse mass `Σ βₖ² wₖ` of the surface point with
     /// barycentric coordinates `barycentric` in `triangle`: how easily the
     /// target gives way there. 0 for a rigid target (a bone) or before
@@ -312,66 +306,6 @@ impl TargetSurface {
         self.transform = transform;
         self.inverse = transform.inverse();
         self.identity = transform == Affine3A::IDENTITY;
-    }
-
-    /// Replaces the positions of a deforming target (same topology). This is
-    /// the per-iteration snapshot publish. The BVH keeps its boxes; the
-    /// largest displacement since they were fitted (the slack) makes the full
-    /// search conservative until [`TargetSurface::refit`] refits them. Normals
-    /// keep their values until [`TargetSurface::update_normals`]. Positions
-    /// that are not all finite (a muscle blowing up) are not published: the
-    /// muscles sliding on it keep its last finite surface, and the run-time
-    /// guard ([`crate::solver::guard()`]) puts the muscle back.
-    pub fn publish(&mut self, positions: &[Vec3]) {
-        let moved = self.moved_squared(positions);
-        if !moved.is_finite() {
-            return;
-        }
-        self.positions.clear();
-        self.positions.extend_from_slice(positions);
-        self.slack = moved.sqrt();
-    }
-
-    /// The largest squared distance of `positions` from those the BVH was
-    /// fitted to (the slack squared), NaN or infinite when a position is
-    /// not finite: one pass with a NaN-propagating maximum.
-    pub fn moved_squared(&self, positions: &[Vec3]) -> f32 {
-        positions
-            .iter()
-            .zip(&self.fitted)
-            .map(|(p, f)| p.distance_squared(*f))
-            .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m })
-    }
-
-    /// [`TargetSurface::publish`] of positions staged beforehand, with
-    /// their [`TargetSurface::moved_squared`]: the staged buffer and the
-    /// snapshot's swap (no copy), the same snapshot and slack as
-    /// publishing the positions. Nothing when they are not finite (the
-    /// buffer keeps them).
-    pub fn publish_staged(&mut self, positions: &mut Vec<Vec3>, moved_squared: f32) {
-        if !moved_squared.is_finite() || positions.len() != self.positions.len() {
-            return;
-        }
-        std::mem::swap(&mut self.positions, positions);
-        self.slack = moved_squared.sqrt();
-    }
-
-    /// Recomputes the vertex normals from the current positions. The solver
-    /// does it in the first iteration of each frame; within a frame the
-    /// normals of a muscle target lag its positions by a few iterations.
-    pub fn update_normals(&mut self) {
-        crate::mesh::vertex_normals(&self.triangles, &self.positions, &mut self.normals);
-    }
-
-    /// Refits the BVH to the current positions once the slack exceeds a
-    /// quarter of the mean edge length (or always, with `force`).
-    pub fn refit(&mut self, force: bool) {
-        if !force && self.slack <= self.max_slack {
-            return;
-        }
-        self.bvh.refit(&self.positions, &self.triangles);
-        self.fitted.clone_from(&self.positions);
-        self.slack = 0.0;
     }
 
     /// Whether the target deforms (a muscle) rather than moving rigidly with
