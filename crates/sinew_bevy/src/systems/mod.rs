@@ -58,7 +58,7 @@ impl Default for StepContext {
         let substep = frame.substep(0);
         Self {
             end_time: 0.0,
-            iteration: substep.iteration(0),
+            iteration: substep.iteration(0, frame.iterations),
             iterations: frame.iterations,
             frame,
             substep,

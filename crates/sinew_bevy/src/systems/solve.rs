@@ -143,7 +143,7 @@ pub(crate) fn run_iterations(world: &mut World) {
     let ctx = world.resource::<StepContext>();
     let (substep, iterations) = (ctx.substep, ctx.iterations);
     for it in 0..iterations {
-        world.resource_mut::<StepContext>().iteration = substep.iteration(it);
+        world.resource_mut::<StepContext>().iteration = substep.iteration(it, iterations);
         world.run_schedule(SinewIterationSchedule);
     }
 }

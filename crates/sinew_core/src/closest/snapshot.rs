@@ -49,7 +49,12 @@ impl TargetSurface {
     /// publishing the positions. Nothing when they are not finite (the
     /// buffer keeps them).
     pub fn publish_staged(&mut self, positions: &mut Vec<Vec3>, moved_squared: f32) {
-        if !moved_squared.is_finite() || positions.len() != self.positions.len() {
+        debug_assert_eq!(
+            positions.len(),
+            self.positions.len(),
+            "staged for another surface"
+        );
+        if !moved_squared.is_finite() {
             return;
         }
         std::mem::swap(&mut self.positions, positions);

@@ -213,11 +213,12 @@ pub struct SubstepParams {
 }
 
 impl SubstepParams {
-    /// Iteration `index` (0-based) of this substep.
-    pub fn iteration(&self, index: u32) -> IterationParams {
+    /// Iteration `index` (0-based) of the `count` this substep runs.
+    pub fn iteration(&self, index: u32, count: u32) -> IterationParams {
         IterationParams {
             substep: *self,
             index,
+            count,
         }
     }
 }
@@ -229,6 +230,9 @@ pub struct IterationParams {
     pub substep: SubstepParams,
     /// Iteration index within the substep (0-based).
     pub index: u32,
+    /// Iterations the substep runs: the largest of the muscles' counts
+    /// ([`FrameParams::iterations_for`]).
+    pub count: u32,
 }
 
 impl IterationParams {
@@ -242,6 +246,12 @@ impl IterationParams {
     /// checked against their muscles.
     pub fn first_of_substep(&self) -> bool {
         self.index == 0
+    }
+
+    /// The substep's last iteration: no iteration of the substep comes
+    /// after it to read a snapshot staged in it.
+    pub fn last_of_substep(&self) -> bool {
+        self.index + 1 >= self.count
     }
 
     /// Whether `m` runs this iteration (`index <` its own count).

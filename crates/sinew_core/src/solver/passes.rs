@@ -187,7 +187,7 @@ pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
     for_each_muscle(Some(pool), muscles, |m, ws| {
         if it.runs(m) {
             pipeline::finish(m, ws, targets, it);
-            pipeline::stage_snapshot(m, ws, targets);
+            pipeline::stage_snapshot(m, ws, targets, it);
         }
     });
     clock.lap(&mut timings.project);

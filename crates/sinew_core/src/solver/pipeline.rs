@@ -102,19 +102,26 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
     let middle = timer.lap(start, 0);
     sweep(m, ws, p);
     finish(m, ws, targets, p);
-    stage_snapshot(m, ws, targets);
+    stage_snapshot(m, ws, targets, p);
     timer.lap(middle, 1);
 }
 
-/// Stages `m`'s surface for its snapshot in the next iteration, in the
-/// muscle's own task, when the driver publishes by staging (it has set the
-/// muscle's own target in the workspace; the plain solver does for every
-/// muscle another targets): the copy and the slack's pass over the
+/// Stages `m`'s surface for its snapshot in the iteration after `p`, in
+/// the muscle's own task, when the driver publishes by staging (it has set
+/// the muscle's own target in the workspace; the plain solver does for
+/// every muscle another targets): the copy and the slack's pass over the
 /// vertices move into the task, and the driver's publish becomes a swap of
 /// buffers (see [`crate::closest::TargetSurface::publish_staged`]).
-pub fn stage_snapshot<T: TargetSet + ?Sized>(m: &Muscle, ws: &mut MuscleWorkspace, targets: &T) {
+/// Nothing after a substep's last iteration: the next substep's first
+/// publishes its predictions in a pass.
+pub fn stage_snapshot<T: TargetSet + ?Sized>(
+    m: &Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    p: &IterationParams,
+) {
     let staged = &mut ws.staged;
-    let Some(id) = staged.target else {
+    let Some(id) = staged.target.filter(|_| !p.last_of_substep()) else {
         return;
     };
     staged.positions.clear();

@@ -41,7 +41,7 @@ impl Solver {
             self.begin_substep(&sub);
             clock.lap(&mut timings.integrate);
             for it in 0..iterations {
-                let iteration = sub.iteration(it);
+                let iteration = sub.iteration(it, iterations);
                 self.publish(&iteration);
                 clock.lap(&mut timings.update_targets);
                 self.iterate(&iteration, &mut clock, &mut timings);
