@@ -6,11 +6,12 @@
 use sinew_core::Solver;
 use sinew_core::analysis::skin_inside_vertices;
 use sinew_core::character::fit::{
-    AnatomyFit, FitOptions, FittedAnatomy, FittedGeometry, PullInside, RigMap, SkinLayer,
-    SkinVolume, fit_anatomy,
+    AnatomyFit, FitOptions, FittedAnatomy, FittedGeometry, HELD_UNDER_SKIN, PullInside, RigMap,
+    SkinLayer, SkinVolume, fit_anatomy,
 };
 use sinew_core::character::{CharacterError, ClipPlayback, SkinnedCharacter, glb};
 use sinew_core::glam::{Affine3A, Vec3};
+use sinew_core::muscle::HoldFrame;
 use sinew_core::scene::Scene;
 use std::path::{Path, PathBuf};
 
@@ -155,6 +156,20 @@ fn the_fitted_scene_walks_with_the_character() {
             &playback,
         )
         .unwrap();
+    // T7 holds no muscle's shape: the fit holds every one along its line
+    // of action, released as it contracts.
+    let (release, frame) = HELD_UNDER_SKIN;
+    assert_eq!((release, frame), (0.2, HoldFrame::Line));
+    for spec in &fitted.scene.muscles {
+        let p = &spec.params;
+        assert!(p.hold_shape, "{} not held", spec.name);
+        assert_eq!(
+            (p.hold_release, p.hold_frame),
+            (release, frame),
+            "{}",
+            spec.name
+        );
+    }
     fitted.add_skin(&character, &SkinLayer::default());
     let dir = std::env::temp_dir().join(format!("sinew_fitted_{}", std::process::id()));
     let path = dir.join("fitted.ron");
@@ -163,6 +178,8 @@ fn the_fitted_scene_walks_with_the_character() {
     let mut built = reloaded.instantiate(&dir).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(reloaded.frames, 180);
+    let biceps = &built.muscles()[built.muscle_index("BIClong").unwrap()];
+    assert!(biceps.hold_line.is_some(), "the biceps' hold has no line");
     // At rest: the muscles as fitted, inside the skin.
     let outside: usize = built
         .muscles()

@@ -147,9 +147,10 @@ pub struct MuscleParams {
     /// through the flexion, fell to ×0.60 of its belly section (×1.23 with
     /// `0.1`); `0.1` still carries an active muscle against gravity (a
     /// 24 cm spindle held only at its ends sags ≤ 20 mm fully active).
-    /// Under a skin (`sinew fit`) the full hold keeps the biceps where the
-    /// skin shows their bulge (5.0–6.2 mm; with `0.1`, 4.5–5.6 mm). Range
-    /// `[0.01, 1]`. Default: `1`.
+    /// Under a skin, `sinew fit` holds a muscle its anatomy does not hold
+    /// with `0.2`, along the line of action
+    /// ([`crate::character::fit::HELD_UNDER_SKIN`]). Range `[0.01, 1]`.
+    /// Default: `1`.
     #[serde(skip_serializing_if = "is_one")]
     pub hold_release: f32,
     /// What carries a held shape ([`Self::hold_shape`]) with the bones:

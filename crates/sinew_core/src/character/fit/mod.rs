@@ -19,7 +19,7 @@ mod spread;
 pub use geometry::{FittedGeometry, SkinVolume};
 pub use inside::{PullInside, PullReport};
 pub use pipeline::{FitOptions, FittedAnatomy, fit_anatomy};
-pub use scene::FittedScene;
+pub use scene::{FittedScene, HELD_UNDER_SKIN};
 pub use similarity::least_squares_similarity;
 pub use skin::SkinLayer;
 

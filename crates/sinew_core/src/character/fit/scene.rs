@@ -6,6 +6,7 @@
 use super::{AnatomyFit, FittedGeometry};
 use crate::character::{CharacterError, ClipPlayback, JointClip, SkinnedCharacter};
 use crate::mesh::ObjObjects;
+use crate::muscle::HoldFrame;
 use crate::scene::{AttachmentSpec, BoneShape, MeshSource, Scene};
 use crate::sensor::{BonePoint, SensorKind};
 use crate::solver::Solver;
@@ -47,6 +48,19 @@ impl FittedScene {
     }
 }
 
+/// How a fitted muscle whose anatomy holds no shape is held under the
+/// skin: [`crate::muscle::MuscleParams::hold_release`] and
+/// [`crate::muscle::MuscleParams::hold_frame`]. Its shape follows its line
+/// of action, as T5's arm does, and the hold lets a contracting muscle go
+/// down to a fifth. At full flexion of the MakeHuman's elbows
+/// (`--clip elbow_flex`) the skin over the biceps' long and short heads
+/// stands 5.62 / 6.67 mm (right) and 5.24 / 8.89 mm (left) out of plain
+/// skinning (Colored: 5.58 / 6.56 and 5.20 / 7.14 mm); held at full
+/// strength on a blend of its bones 4.89 / 4.65 and 6.32 / 3.33 mm, on
+/// the line released to a tenth (T5's) 5.29 / 6.10 and 5.85 / 6.41 mm
+/// (Colored: 4.59 mm over the left long head).
+pub const HELD_UNDER_SKIN: (f32, HoldFrame) = (0.2, HoldFrame::Line);
+
 impl AnatomyFit {
     /// The scene of `anatomy` (built as `solver`, in metres) fitted to
     /// `character` (`geometry`: this fit's bones and muscles, pulled inside
@@ -61,7 +75,8 @@ impl AnatomyFit {
     ///   resolved to, holding their shape on their bones
     ///   ([`crate::muscle::MuscleParams::hold_shape`]: a limb turned
     ///   sideways by the clip would otherwise let what no target holds
-    ///   sag out of the skin), everything else as in `anatomy`;
+    ///   sag out of the skin) — where `anatomy` holds none, as
+    ///   [`HELD_UNDER_SKIN`] says — everything else as in `anatomy`;
     /// - sensors: their points moved with their bones.
     ///
     /// Errors: an anatomy not in metres (`length_unit` ≠ 1).
@@ -154,7 +169,12 @@ impl AnatomyFit {
                 orient_outward: false,
                 translation: glam::Vec3::ZERO,
             };
-            spec.params.hold_shape = true;
+            if !spec.params.hold_shape {
+                let (release, frame) = HELD_UNDER_SKIN;
+                spec.params.hold_shape = true;
+                spec.params.hold_release = release;
+                spec.params.hold_frame = frame;
+            }
             spec.attachments = m
                 .attachments
                 .iter()
