@@ -31,9 +31,14 @@ impl Muscle {
         let bulge = p.bulge.then(|| p.volume.activation_ratio(a, a0));
         let scale = ActivationScale::new(a, a0, p.max_contraction, bulge);
         let k = &mut self.constraints;
-        k.fiber.update_rest(p.fiber_mode, &scale);
-        k.branch.update_rest(p.fiber_mode, &scale);
-        k.internal.update_rest(p.fiber_mode, &scale);
+        // The rest lengths depend on the mode and the scale alone: unchanged
+        // (a skin, a muscle at rest) they are kept, to the bit.
+        if self.applied_scale != Some((p.fiber_mode, scale)) {
+            k.fiber.update_rest(p.fiber_mode, &scale);
+            k.branch.update_rest(p.fiber_mode, &scale);
+            k.internal.update_rest(p.fiber_mode, &scale);
+            self.applied_scale = Some((p.fiber_mode, scale));
+        }
         if let Some(v) = &mut k.volume {
             v.ratio = p.volume.ratio(a, a0);
         }
@@ -178,5 +183,50 @@ impl Muscle {
             self.constraints.soft.compliance[i] = weighted(comp.soft, o);
             self.constraints.hard.compliance[i] = weighted(comp.hard, h);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+    use std::path::Path;
+
+    /// T1's oval as built, before any activation was applied.
+    fn oval() -> Muscle {
+        let solver = builtin("T1").unwrap().instantiate(Path::new(".")).unwrap();
+        solver.muscles()[0].clone()
+    }
+
+    /// The Fiber, Branch and Internal rest lengths of `m` after applying
+    /// `activation` and `mode`.
+    fn rest_after(m: &mut Muscle, activation: f32, mode: FiberMode) -> Vec<f32> {
+        m.params.activation = activation;
+        m.params.fiber_mode = mode;
+        m.update_activation();
+        let k = &m.constraints;
+        [&k.fiber.rest, &k.branch.rest, &k.internal.rest]
+            .into_iter()
+            .flatten()
+            .copied()
+            .collect()
+    }
+
+    #[test]
+    fn rest_lengths_kept_for_an_unchanged_activation_are_those_it_would_compute() {
+        let mode = FiberMode::RotationInvariant;
+        let fresh = |a: f32, mode: FiberMode| rest_after(&mut oval(), a, mode);
+        let mut m = oval();
+        let contracted = rest_after(&mut m, 0.6, mode);
+        assert_eq!(rest_after(&mut m, 0.6, mode), contracted);
+        assert_eq!(contracted, fresh(0.6, mode));
+        // A new activation, or the same one in another mode, recomputes.
+        let relaxed = rest_after(&mut m, 0.0, mode);
+        assert_ne!(relaxed, contracted);
+        assert_eq!(relaxed, fresh(0.0, mode));
+        let paper = rest_after(&mut m, 0.6, FiberMode::PaperExact);
+        assert_eq!(paper, fresh(0.6, FiberMode::PaperExact));
+        assert_ne!(paper, contracted);
+        assert_eq!(rest_after(&mut m, 0.6, mode), contracted);
     }
 }
