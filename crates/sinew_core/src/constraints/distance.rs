@@ -55,6 +55,10 @@ pub struct ActivationRest {
     /// and `1 + (β − 1) k` (its contraction `c k` in the paper's formula).
     /// Empty: every constraint fully contractile.
     pub contractile: Vec<f32>,
+    /// The fibre mode and activation scale the batch's rest lengths were
+    /// last set for ([`DistanceBatch::update_rest`]); `None` in a batch
+    /// just built.
+    applied: Option<(FiberMode, ActivationScale)>,
 }
 
 impl ActivationRest {
@@ -173,12 +177,18 @@ impl DistanceBatch {
         self.lambda.push(0.0);
     }
 
-    /// Recomputes activation-dependent rest lengths (once per frame, SPEC §5.1 caching).
+    /// Recomputes activation-dependent rest lengths (once per frame, SPEC
+    /// §5.1 caching). They depend on the mode and the scale alone: for the
+    /// ones they were last set for (a skin, a muscle at rest) they are kept,
+    /// to the bit, without a pass over the batch.
     pub fn update_rest(&mut self, mode: FiberMode, scale: &ActivationScale) {
-        if let Some(act) = &self.activation {
+        if let Some(act) = &mut self.activation
+            && act.applied != Some((mode, *scale))
+        {
             for (i, r) in self.rest.iter_mut().enumerate() {
                 *r = act.rest_length(i, mode, scale);
             }
+            act.applied = Some((mode, *scale));
         }
     }
 

@@ -168,7 +168,6 @@ impl Muscle {
             constraints: MuscleConstraints::default(),
             maps,
             activation_reported: false,
-            applied_scale: None,
             length_unit,
             topology: 0,
         };

@@ -29,7 +29,7 @@ pub use hold_line::{HoldLine, LinePose};
 pub use internal::{InternalStructure, InternalStructureParams};
 pub use params::{ConnectionWeights, HoldFrame, MAX_FIBER_SMOOTHING, MassMode, MuscleParams};
 
-use crate::constraints::{ActivationScale, FiberMode, ParticleId, TargetSlot};
+use crate::constraints::{ActivationScale, ParticleId, TargetSlot};
 use crate::error::BuildError;
 use crate::mesh::SurfaceMesh;
 use glam::{Affine3A, Vec3};
@@ -118,11 +118,6 @@ pub struct Muscle {
     pub maps: VertexMaps,
     /// Activation was outside [0, 1] and has been reported.
     pub activation_reported: bool,
-    /// The fibre mode and activation scale the rest lengths of the Fiber,
-    /// Branch and Internal batches were last set for
-    /// ([`Muscle::update_activation`]): a muscle whose activation did not
-    /// change keeps them without recomputing them.
-    applied_scale: Option<(FiberMode, ActivationScale)>,
     /// Scene units per metre the muscle was built in
     /// ([`crate::SolverSettings::length_unit`]): its SI parameters are
     /// converted by it.

@@ -31,14 +31,9 @@ impl Muscle {
         let bulge = p.bulge.then(|| p.volume.activation_ratio(a, a0));
         let scale = ActivationScale::new(a, a0, p.max_contraction, bulge);
         let k = &mut self.constraints;
-        // The rest lengths depend on the mode and the scale alone: unchanged
-        // (a skin, a muscle at rest) they are kept, to the bit.
-        if self.applied_scale != Some((p.fiber_mode, scale)) {
-            k.fiber.update_rest(p.fiber_mode, &scale);
-            k.branch.update_rest(p.fiber_mode, &scale);
-            k.internal.update_rest(p.fiber_mode, &scale);
-            self.applied_scale = Some((p.fiber_mode, scale));
-        }
+        k.fiber.update_rest(p.fiber_mode, &scale);
+        k.branch.update_rest(p.fiber_mode, &scale);
+        k.internal.update_rest(p.fiber_mode, &scale);
         if let Some(v) = &mut k.volume {
             v.ratio = p.volume.ratio(a, a0);
         }
@@ -189,6 +184,7 @@ impl Muscle {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::constraints::FiberMode;
     use crate::scene::builtin;
     use std::path::Path;
 
@@ -227,6 +223,10 @@ mod tests {
         let paper = rest_after(&mut m, 0.6, FiberMode::PaperExact);
         assert_eq!(paper, fresh(0.6, FiberMode::PaperExact));
         assert_ne!(paper, contracted);
+        assert_eq!(rest_after(&mut m, 0.6, mode), contracted);
+        // A batch built anew starts from its build's lengths and is set
+        // again for the same activation.
+        m.constraints.fiber = crate::muscle::fiber_edges(&m);
         assert_eq!(rest_after(&mut m, 0.6, mode), contracted);
     }
 }
