@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""Compares two `sinew` binaries on a noisy, shared machine: both at once.
+
+    scripts/ab_bench.py OLD NEW [--rounds N] -- BENCH_ARGS...
+
+e.g. `scripts/ab_bench.py /tmp/sinew_old target/release/sinew --rounds 3 --
+assets/scenes/t7.ron --from 120 --frames 40 --runs 3`.
+
+Each round runs `OLD bench BENCH_ARGS --threads 1` and `NEW bench ...` at the
+same time, each pinned to a core of its own (`taskset`), swapping the cores
+every round. The two then share whatever the machine is doing at that
+moment (other tenants, the clock, the memory bandwidth), which one after the
+other they do not: on the 2-core development machine, a build run against
+itself this way reads within 0–5 % in a round, where runs one after the
+other drift by 30 % and more within minutes. The ratio of each block
+(NEW / OLD) is taken per round; the table gives each side's median ms/frame
+over the rounds and the median of the per-round ratios.
+
+One thread each, so it compares single-thread work (what a change to a
+kernel or a cache changes), not the scaling over threads. Standard library
+only; needs `taskset` (util-linux) and two cores.
+"""
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+
+# A block line of `sinew bench`: its name, then ms/frame first.
+BLOCK = re.compile(r"^([a-z][a-z ]*[a-z])\s+(\d+\.\d+)(?:\s|$)")
+
+
+def blocks(text):
+    """The (name, ms/frame) of each block line, the wall included."""
+    found = {}
+    for line in text.splitlines():
+        m = BLOCK.match(line)
+        if m and m.group(1) not in found:
+            found[m.group(1)] = float(m.group(2))
+    return found
+
+
+def main():
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        usage="%(prog)s OLD NEW [--rounds N] -- BENCH_ARGS...",
+    )
+    parser.add_argument("old", help="the sinew binary to compare against")
+    parser.add_argument("new", help="the sinew binary under test")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds (default 3)")
+    argv = sys.argv[1:]
+    split = argv.index("--") if "--" in argv else len(argv)
+    args = parser.parse_args(argv[:split])
+    bench = argv[split + 1:]
+    if not bench:
+        parser.error("give sinew bench's arguments after --")
+    if any(a == "--threads" or a.startswith("--threads=") for a in bench):
+        parser.error("leave --threads out: each side runs on one pinned core")
+    if args.rounds < 1:
+        parser.error("--rounds must be at least 1")
+    for binary in (args.old, args.new):
+        if not os.access(binary, os.X_OK):
+            sys.exit(f"{binary}: not an executable")
+    if (os.cpu_count() or 1) < 2:
+        sys.exit("needs two cores: one for each side")
+
+    runs = {"old": [], "new": []}
+    for r in range(args.rounds):
+        cores = {"old": r % 2, "new": 1 - r % 2}
+        procs = {
+            side: subprocess.Popen(
+                ["taskset", "-c", str(cores[side]), binary, "bench", *bench, "--threads", "1"],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+            )
+            for side, binary in (("old", args.old), ("new", args.new))
+        }
+        for side, proc in procs.items():
+            out, _ = proc.communicate()
+            if proc.returncode != 0:
+                sys.exit(f"{side} ({getattr(args, side)}) failed in round {r + 1}:\n{out}")
+            found = blocks(out)
+            if not found:
+                sys.exit(f"{side}: no block lines in its output:\n{out}")
+            runs[side].append(found)
+        wall = [runs[s][-1].get("wall", float("nan")) for s in ("old", "new")]
+        print(f"round {r + 1}: wall {wall[0]:.2f} / {wall[1]:.2f} ms (old core {cores['old']})")
+
+    names = [n for n in runs["old"][0] if all(n in run for run in runs["old"] + runs["new"])]
+    print(f"\n{'block':<16}{'old ms':>10}{'new ms':>10}{'new/old':>10}   per round")
+    for name in names:
+        old = [run[name] for run in runs["old"]]
+        new = [run[name] for run in runs["new"]]
+        ratios = [n / o if o > 0 else float("nan") for o, n in zip(old, new)]
+        each = " ".join(f"{x:.3f}" for x in ratios)
+        print(
+            f"{name:<16}{statistics.median(old):>10.3f}{statistics.median(new):>10.3f}"
+            f"{statistics.median(ratios):>10.3f}   {each}"
+        )
+
+
+if __name__ == "__main__":
+    main()
