@@ -13,14 +13,18 @@ moment (other tenants, the clock, the memory bandwidth), which one after the
 other they do not: on the 2-core development machine, a build run against
 itself this way reads within 0–5 % in a round, where runs one after the
 other drift by 30 % and more within minutes. The ratio of each block
-(NEW / OLD) is taken per round; the table gives each side's median ms/frame
-over the rounds and the median of the per-round ratios.
+(NEW / OLD) is taken per round; one core can be steadily slower than the
+other for a while, so two consecutive rounds (the cores swapped) make a
+pair whose geometric mean cancels that. The table gives each side's median
+ms/frame over the rounds, the median of the pairs' ratios (of the rounds'
+with a single round) and each round's ratio.
 
 One thread each, so it compares single-thread work (what a change to a
 kernel or a cache changes), not the scaling over threads. Standard library
 only; needs `taskset` (util-linux) and two cores.
 """
 import argparse
+import math
 import os
 import re
 import statistics
@@ -48,7 +52,9 @@ def main():
     )
     parser.add_argument("old", help="the sinew binary to compare against")
     parser.add_argument("new", help="the sinew binary under test")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds (default 3)")
+    parser.add_argument(
+        "--rounds", type=int, default=4, help="rounds, best even: pairs swap the cores (default 4)"
+    )
     argv = sys.argv[1:]
     split = argv.index("--") if "--" in argv else len(argv)
     args = parser.parse_args(argv[:split])
@@ -94,10 +100,11 @@ def main():
         old = [run[name] for run in runs["old"]]
         new = [run[name] for run in runs["new"]]
         ratios = [n / o if o > 0 else float("nan") for o, n in zip(old, new)]
+        pairs = [math.sqrt(a * b) for a, b in zip(ratios[::2], ratios[1::2])] or ratios
         each = " ".join(f"{x:.3f}" for x in ratios)
         print(
             f"{name:<16}{statistics.median(old):>10.3f}{statistics.median(new):>10.3f}"
-            f"{statistics.median(ratios):>10.3f}   {each}"
+            f"{statistics.median(pairs):>10.3f}   {each}"
         )
 
 

@@ -18,7 +18,8 @@ use glam::Vec3;
 pub const CLOSEST_CHUNK: usize = 256;
 
 /// Closest data (BE5): Sliding's closest point on the closest target per
-/// vertex, and the current goals of Soft and Hard on their rest triangles.
+/// vertex, and the current goals of the Soft and Hard that are on, on their
+/// rest triangles.
 /// With `search.split` the vertices are split over the current rayon pool
 /// in chunks of `CLOSEST_CHUNK` (each vertex writes only its own data, so
 /// the result is the same).
@@ -55,26 +56,53 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     } else {
         input.closest(run);
     }
+    tie_goals(m, ws, targets, search);
+}
+
+/// The current goals of the Soft and Hard constraints that are on (a finite
+/// compliance), on their rest triangles. Which are on is listed in a
+/// substep's first iteration (weights change between steps, never within
+/// one), so the other iterations visit only those: every shipped scene has
+/// them all off (weight 0), and going over T7's 2 × 20 448 switched-off
+/// ties in each of its ten iterations took about an eighth of its closest
+/// data.
+fn tie_goals<T: TargetSet + ?Sized>(
+    m: &mut Muscle,
+    ws: &mut MuscleWorkspace,
+    targets: &T,
+    search: ClosestSchedule,
+) {
+    let c = &mut m.constraints;
+    let on = &mut ws.ties_on;
+    if search.first_of_substep {
+        let list = |compliance: &[f32], anchors: usize, list: &mut Vec<u32>| {
+            list.clear();
+            let finite = compliance[..anchors.min(compliance.len())]
+                .iter()
+                .enumerate()
+                .filter(|(_, alpha)| alpha.is_finite());
+            list.extend(finite.map(|(i, _)| i as u32));
+        };
+        list(&c.soft.compliance, c.soft_anchor.len(), &mut on.soft);
+        list(&c.hard.compliance, c.hard_anchor.len(), &mut on.hard);
+    }
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
     let moved = |t: &TargetSurface| search.first_of_substep || t.is_deforming();
-    // Disabled instances (weight 0: infinite compliance) need no goal.
-    for (i, a) in c.soft_anchor.iter().enumerate() {
-        if c.soft.compliance[i].is_finite() {
-            let t = targets.target(ws.target_ids[a.target.index()]);
-            if moved(t) {
-                c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
-                c.soft.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
-            }
+    for &i in &on.soft {
+        let (i, a) = (i as usize, &c.soft_anchor[i as usize]);
+        let t = targets.target(ws.target_ids[a.target.index()]);
+        if moved(t) {
+            c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
+            c.soft.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
         }
     }
-    for (i, a) in c.hard_anchor.iter().enumerate() {
-        if c.hard.compliance[i].is_finite() {
-            let t = targets.target(ws.target_ids[a.target.index()]);
-            if moved(t) {
-                c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
-                c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
-            }
+    for &i in &on.hard {
+        let (i, a) = (i as usize, &c.hard_anchor[i as usize]);
+        let t = targets.target(ws.target_ids[a.target.index()]);
+        if moved(t) {
+            c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
+            c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
         }
     }
 }
@@ -297,5 +325,69 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+    use crate::solver::params::ClosestSchedule;
+
+    /// The Soft goals closest data moves are those of the ties that are on
+    /// when the substep starts: in its first iteration every one of them
+    /// (on any target), in a later one those on a muscle (a bone has not
+    /// moved); a tie switched off between substeps keeps its goal.
+    #[test]
+    fn soft_goals_move_for_the_ties_that_are_on() {
+        let mut solver = builtin("P3")
+            .unwrap()
+            .instantiate(std::path::Path::new("."))
+            .unwrap();
+        for _ in 0..5 {
+            solver.step();
+        }
+        let targets = solver.targets.as_slice();
+        let later = ClosestSchedule {
+            first_of_frame: false,
+            first_of_substep: false,
+            ..ClosestSchedule::ALWAYS
+        };
+        let (mut m, mut ws) = (solver.muscles()[0].clone(), solver.workspaces()[0].clone());
+        let anchors = m.constraints.soft_anchor.clone();
+        let ids = ws.target_ids.clone();
+        let target_of = |i: usize| targets.target(ids[anchors[i].target.index()]);
+        let expected =
+            |i: usize| target_of(i).point_at(anchors[i].triangle, anchors[i].barycentric);
+        let on = |m: &Muscle, i: usize| m.constraints.soft.compliance[i].is_finite();
+        // A third of the ties on switched off before the substep.
+        let was_on: Vec<usize> = (0..anchors.len()).filter(|&i| on(&m, i)).collect();
+        for &i in was_on.iter().step_by(3) {
+            m.constraints.soft.compliance[i] = f32::INFINITY;
+        }
+        let unset = Vec3::splat(f32::NAN);
+        let (mut moved_on_muscle, mut moved_on_bone) = (0, 0);
+        for schedule in [ClosestSchedule::ALWAYS, later] {
+            m.constraints.soft.goal.fill(unset);
+            closest_data(&mut m, &mut ws, targets, schedule);
+            for i in 0..anchors.len() {
+                let goal = m.constraints.soft.goal[i];
+                let moves = on(&m, i) && (schedule.first_of_substep || target_of(i).is_deforming());
+                if moves {
+                    assert_eq!(goal, expected(i), "tie {i}");
+                    match target_of(i).is_deforming() {
+                        true => moved_on_muscle += 1,
+                        false => moved_on_bone += 1,
+                    }
+                } else {
+                    assert!(goal.is_nan(), "tie {i} moved");
+                }
+            }
+        }
+        assert!(
+            moved_on_muscle > 0 && moved_on_bone > 0,
+            "{moved_on_muscle} / {moved_on_bone}"
+        );
+        assert!(was_on.len() > 3, "P3 has ties on");
     }
 }

@@ -9,6 +9,7 @@
 //! bone_margin       (vertex, bone it is near); their margin per vertex
 //! bone_boxes        the bones' world boxes, for bone contacts
 //! side_memo         per vertex, its last winding-number sides of its bones
+//! ties_on           the Soft and Hard constraints that are on, this substep
 //! plan, jacobi      colour plan / Jacobi incidence of the method in use
 //! momentum          a free muscle's momentum, recorded at the substep's start
 //! ```
@@ -124,6 +125,9 @@ pub struct MuscleWorkspace {
     /// of its sides of the bones near it, shared by closest data and bone
     /// contacts (see [`SideMemo`]); sized at link.
     pub(crate) side_memo: Vec<SideMemo>,
+    /// The Soft and Hard constraints that are on, listed by closest data
+    /// in each substep's first iteration.
+    pub(crate) ties_on: TiesOn,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
     pub(crate) plan: Option<(u64, ColorPlan)>,
@@ -136,6 +140,16 @@ pub struct MuscleWorkspace {
     /// The muscle's snapshot for the next iteration, staged by its own task
     /// ([`super::pipeline::stage_snapshot`]) when the driver asks.
     pub(crate) staged: StagedSnapshot,
+}
+
+/// The indices of the Soft and Hard constraints with a finite compliance
+/// (on), ascending: the ties whose goals closest data moves.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TiesOn {
+    /// Soft constraints that are on.
+    pub soft: Vec<u32>,
+    /// Hard constraints that are on.
+    pub hard: Vec<u32>,
 }
 
 /// A muscle's surface positions staged for its snapshot at the end of its
@@ -173,6 +187,8 @@ impl MuscleWorkspace {
         self.bone_groups.clear();
         self.side_memo.clear();
         self.side_memo.resize(s.len(), SideMemo::default());
+        self.ties_on.soft.clear();
+        self.ties_on.hard.clear();
     }
 
     /// The colour plan in use, if any (for reports and debug views).
