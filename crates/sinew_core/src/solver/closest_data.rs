@@ -62,10 +62,10 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
 /// The current goals of the Soft and Hard constraints that are on (a finite
 /// compliance), on their rest triangles. Which are on is listed in a
 /// substep's first iteration (weights change between steps, never within
-/// one), so the other iterations visit only those: every shipped scene has
-/// them all off (weight 0), and going over T7's 2 × 20 448 switched-off
-/// ties in each of its ten iterations took about an eighth of its closest
-/// data.
+/// one), so the iterations visit only those: the anatomy scenes (T3–T7,
+/// the fitted character) have them all off (weight 0), and going over
+/// T7's 2 × 20 448 switched-off ties in each of its ten iterations took
+/// about a twelfth of its closest data.
 fn tie_goals<T: TargetSet + ?Sized>(
     m: &mut Muscle,
     ws: &mut MuscleWorkspace,
