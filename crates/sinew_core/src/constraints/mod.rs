@@ -220,12 +220,28 @@ pub trait ConstraintBatch {
     /// loop: this is the Sequential method's whole projection).
     fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         for i in 0..self.count() {
-            let particles = self.particles(i);
-            let at = Gathered::from_slices(particles, self.particles_per_constraint(), p, w);
-            if let Some(c) = self.correction_of(i, self.lambdas()[i], at, inv_dt2) {
-                self.lambdas_mut()[i] += c.dlambda;
-                c.write(particles, p);
-            }
+            self.solve_at(i, p, w, inv_dt2);
+        }
+    }
+
+    /// [`ConstraintBatch::solve`] over the constraints listed in `on`
+    /// (ascending) only: the same pass where every other constraint is off
+    /// ([`ConstraintBatch::is_off`]), without visiting those.
+    fn solve_listed(&mut self, on: &[u32], p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        for &i in on {
+            self.solve_at(i as usize, p, w, inv_dt2);
+        }
+    }
+
+    /// Projects constraint `i` and writes it: one step of
+    /// [`ConstraintBatch::solve`].
+    #[inline(always)]
+    fn solve_at(&mut self, i: usize, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
+        let particles = self.particles(i);
+        let at = Gathered::from_slices(particles, self.particles_per_constraint(), p, w);
+        if let Some(c) = self.correction_of(i, self.lambdas()[i], at, inv_dt2) {
+            self.lambdas_mut()[i] += c.dlambda;
+            c.write(particles, p);
         }
     }
 }

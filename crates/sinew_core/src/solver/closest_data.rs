@@ -29,6 +29,10 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     targets: &T,
     search: ClosestSchedule,
 ) {
+    // Which connections are on, for the substep's iterations.
+    if search.first_of_substep {
+        ws.switched_on.list(m);
+    }
     let nt = ws.target_ids.len();
     if nt == 0 {
         return;
@@ -61,11 +65,11 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
 
 /// The current goals of the Soft and Hard constraints that are on (a finite
 /// compliance), on their rest triangles. Which are on is listed in a
-/// substep's first iteration (weights change between steps, never within
-/// one), so the iterations visit only those: the anatomy scenes (T3–T7,
-/// the fitted character) have them all off (weight 0), and going over
-/// T7's 2 × 20 448 switched-off ties in each of its ten iterations took
-/// about a twelfth of its closest data.
+/// substep's first iteration ([`MuscleWorkspace::switched_on`]), so the
+/// iterations visit only those: the anatomy scenes (T3–T7, the fitted
+/// character) have them all off (weight 0), and going over T7's 2 × 20 448
+/// switched-off ties in each of its ten iterations took about a twelfth of
+/// its closest data.
 fn tie_goals<T: TargetSet + ?Sized>(
     m: &mut Muscle,
     ws: &mut MuscleWorkspace,
@@ -73,24 +77,16 @@ fn tie_goals<T: TargetSet + ?Sized>(
     search: ClosestSchedule,
 ) {
     let c = &mut m.constraints;
-    let on = &mut ws.ties_on;
-    if search.first_of_substep {
-        let list = |compliance: &[f32], anchors: usize, list: &mut Vec<u32>| {
-            list.clear();
-            let finite = compliance[..anchors.min(compliance.len())]
-                .iter()
-                .enumerate()
-                .filter(|(_, alpha)| alpha.is_finite());
-            list.extend(finite.map(|(i, _)| i as u32));
-        };
-        list(&c.soft.compliance, c.soft_anchor.len(), &mut on.soft);
-        list(&c.hard.compliance, c.hard_anchor.len(), &mut on.hard);
-    }
+    let on = &ws.switched_on;
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
     let moved = |t: &TargetSurface| search.first_of_substep || t.is_deforming();
+    // (A tie built without an anchor has no goal to move.)
     for &i in &on.soft {
-        let (i, a) = (i as usize, &c.soft_anchor[i as usize]);
+        let i = i as usize;
+        let Some(a) = c.soft_anchor.get(i) else {
+            continue;
+        };
         let t = targets.target(ws.target_ids[a.target.index()]);
         if moved(t) {
             c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
@@ -98,7 +94,10 @@ fn tie_goals<T: TargetSet + ?Sized>(
         }
     }
     for &i in &on.hard {
-        let (i, a) = (i as usize, &c.hard_anchor[i as usize]);
+        let i = i as usize;
+        let Some(a) = c.hard_anchor.get(i) else {
+            continue;
+        };
         let t = targets.target(ws.target_ids[a.target.index()]);
         if moved(t) {
             c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);

@@ -9,7 +9,7 @@
 //! bone_margin       (vertex, bone it is near); their margin per vertex
 //! bone_boxes        the bones' world boxes, for bone contacts
 //! side_memo         per vertex, its last winding-number sides of its bones
-//! ties_on           the Soft and Hard constraints that are on, this substep
+//! switched_on       the Soft, Hard and Sliding constraints that are on, this substep
 //! plan, jacobi      colour plan / Jacobi incidence of the method in use
 //! momentum          a free muscle's momentum, recorded at the substep's start
 //! ```
@@ -23,7 +23,7 @@ use super::jacobi::JacobiState;
 use super::momentum::RigidMomentum;
 use crate::closest::{NO_TRIANGLE, SideMemo};
 use crate::constraints::TargetId;
-use crate::muscle::Muscle;
+use crate::muscle::{ConstraintKind, Muscle};
 use glam::{Vec3, Vec3A, Vec4};
 
 /// Most bone cells per Sliding constraint ([`MuscleWorkspace::bone_cells`]):
@@ -125,9 +125,9 @@ pub struct MuscleWorkspace {
     /// of its sides of the bones near it, shared by closest data and bone
     /// contacts (see [`SideMemo`]); sized at link.
     pub(crate) side_memo: Vec<SideMemo>,
-    /// The Soft and Hard constraints that are on, listed by closest data
-    /// in each substep's first iteration.
-    pub(crate) ties_on: TiesOn,
+    /// The Soft, Hard and Sliding constraints that are on, listed by
+    /// closest data in each substep's first iteration.
+    pub(crate) switched_on: SwitchedOn,
     /// The colour plan of a coloured method, with the topology it was built
     /// for.
     pub(crate) plan: Option<(u64, ColorPlan)>,
@@ -142,14 +142,44 @@ pub struct MuscleWorkspace {
     pub(crate) staged: StagedSnapshot,
 }
 
-/// The indices of the Soft and Hard constraints with a finite compliance
-/// (on), ascending: the ties whose goals closest data moves.
+/// The indices of the connections with a finite compliance (on),
+/// ascending: the Soft and Hard whose goals closest data moves, and the
+/// Soft, Hard and Sliding that Gauss–Seidel projects. A weight changes
+/// between steps, never within one: closest data lists them in a substep's
+/// first iteration ([`SwitchedOn::list`]).
 #[derive(Clone, Debug, Default)]
-pub(crate) struct TiesOn {
+pub(crate) struct SwitchedOn {
     /// Soft constraints that are on.
     pub soft: Vec<u32>,
     /// Hard constraints that are on.
     pub hard: Vec<u32>,
+    /// Sliding constraints that are on.
+    pub sliding: Vec<u32>,
+}
+
+impl SwitchedOn {
+    /// Lists the connections of `m` that are on.
+    pub fn list(&mut self, m: &Muscle) {
+        let c = &m.constraints;
+        let list = |compliance: &[f32], list: &mut Vec<u32>| {
+            list.clear();
+            let finite = compliance.iter().enumerate().filter(|(_, a)| a.is_finite());
+            list.extend(finite.map(|(i, _)| i as u32));
+        };
+        list(&c.soft.compliance, &mut self.soft);
+        list(&c.hard.compliance, &mut self.hard);
+        list(&c.sliding.compliance, &mut self.sliding);
+    }
+
+    /// The list for constraints of `kind`, if it keeps one.
+    pub fn of(&self, kind: ConstraintKind) -> Option<&[u32]> {
+        match kind {
+            ConstraintKind::Soft => Some(&self.soft),
+            ConstraintKind::Hard => Some(&self.hard),
+            ConstraintKind::Sliding => Some(&self.sliding),
+            _ => None,
+        }
+    }
 }
 
 /// A muscle's surface positions staged for its snapshot at the end of its
@@ -187,8 +217,7 @@ impl MuscleWorkspace {
         self.bone_groups.clear();
         self.side_memo.clear();
         self.side_memo.resize(s.len(), SideMemo::default());
-        self.ties_on.soft.clear();
-        self.ties_on.hard.clear();
+        self.switched_on = SwitchedOn::default();
     }
 
     /// The colour plan in use, if any (for reports and debug views).
@@ -236,6 +265,56 @@ mod tests {
             cells.map(|c| c.slot),
             [7, 4, 9],
             "the farthest bone (3) gave way"
+        );
+    }
+
+    /// Gauss–Seidel over the connections that are on gives the bits of the
+    /// pass over every connection: P3 (Soft, Hard and Sliding all used),
+    /// a third of each switched off.
+    #[test]
+    fn gauss_seidel_over_the_connections_that_are_on_is_the_whole_pass() {
+        use crate::solver::pipeline::{gauss_seidel, gauss_seidel_over};
+        let mut solver = crate::scene::builtin("P3")
+            .unwrap()
+            .instantiate(std::path::Path::new("."))
+            .unwrap();
+        for _ in 0..5 {
+            solver.step();
+        }
+        let mut m = solver.muscles()[0].clone();
+        let c = &mut m.constraints;
+        for compliance in [
+            &mut c.soft.compliance,
+            &mut c.hard.compliance,
+            &mut c.sliding.compliance,
+        ] {
+            let on: Vec<usize> = (0..compliance.len())
+                .filter(|&i| compliance[i].is_finite())
+                .collect();
+            assert!(on.len() > 3, "P3 has connections on");
+            for &i in on.iter().step_by(3) {
+                compliance[i] = f32::INFINITY;
+            }
+        }
+        for (i, p) in m.p.iter_mut().enumerate() {
+            *p += 1e-3 * Vec3::new((i as f32).sin(), (i as f32 * 0.7).cos(), 0.3);
+        }
+        let mut on = SwitchedOn::default();
+        on.list(&m);
+        let order = ConstraintKind::CANONICAL_ORDER;
+        let (mut all, mut listed) = (m.clone(), m);
+        gauss_seidel(&mut all, &order, 3600.0);
+        gauss_seidel_over(&mut listed, &order, 3600.0, Some(&on));
+        assert_eq!(all.p, listed.p);
+        let (a, l) = (&all.constraints, &listed.constraints);
+        assert_eq!(a.soft.lambda, l.soft.lambda);
+        assert_eq!(a.hard.lambda, l.hard.lambda);
+        assert_eq!(a.sliding.lambda, l.sliding.lambda);
+        assert!(
+            all.p
+                .iter()
+                .zip(&solver.muscles()[0].p)
+                .any(|(a, b)| a != b)
         );
     }
 }
