@@ -9,8 +9,8 @@ use super::params::ClosestSchedule;
 use super::sliding_run::SlidingRun;
 use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
-use crate::constraints::{TargetId, TargetSlot};
-use crate::muscle::Muscle;
+use crate::constraints::{PointBatch, TargetId, TargetSlot};
+use crate::muscle::{Muscle, SurfaceAnchor};
 use glam::Vec3;
 
 /// Sliding constraints per parallel chunk of the closest-data block (a few
@@ -80,28 +80,35 @@ fn tie_goals<T: TargetSet + ?Sized>(
     let on = &ws.switched_on;
     // Soft and Hard goals on a rigid target only move with its bone, which
     // is posed once per substep; a muscle target moves every iteration.
-    let moved = |t: &TargetSurface| search.first_of_substep || t.is_deforming();
-    // (A tie built without an anchor has no goal to move.)
-    for &i in &on.soft {
-        let i = i as usize;
-        let Some(a) = c.soft_anchor.get(i) else {
-            continue;
-        };
+    let moved = |a: &SurfaceAnchor| {
         let t = targets.target(ws.target_ids[a.target.index()]);
-        if moved(t) {
-            c.soft.goal[i] = t.point_at(a.triangle, a.barycentric);
-            c.soft.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
-        }
-    }
-    for &i in &on.hard {
+        (search.first_of_substep || t.is_deforming()).then_some(t)
+    };
+    move_goals(&on.soft, &c.soft_anchor, &mut c.soft, moved, |t, a| {
+        t.point_at(a.triangle, a.barycentric)
+    });
+    move_goals(&on.hard, &c.hard_anchor, &mut c.hard, moved, |t, a| {
+        t.point_in_frame(a.triangle, a.barycentric, a.local)
+    });
+}
+
+/// Moves the goal (`goal_at` on its target) and the target's inverse mass
+/// of each tie listed in `on` whose target has `moved` (`Some`: the
+/// target); a tie built without an anchor has no goal to move.
+fn move_goals<'t>(
+    on: &[u32],
+    anchors: &[SurfaceAnchor],
+    ties: &mut PointBatch,
+    moved: impl Fn(&SurfaceAnchor) -> Option<&'t TargetSurface>,
+    goal_at: impl Fn(&TargetSurface, &SurfaceAnchor) -> Vec3,
+) {
+    for &i in on {
         let i = i as usize;
-        let Some(a) = c.hard_anchor.get(i) else {
-            continue;
-        };
-        let t = targets.target(ws.target_ids[a.target.index()]);
-        if moved(t) {
-            c.hard.goal[i] = t.point_in_frame(a.triangle, a.barycentric, a.local);
-            c.hard.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
+        if let Some(a) = anchors.get(i)
+            && let Some(t) = moved(a)
+        {
+            ties.goal[i] = goal_at(t, a);
+            ties.target_w[i] = t.point_inverse_mass(a.triangle, a.barycentric);
         }
     }
 }

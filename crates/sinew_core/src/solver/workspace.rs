@@ -22,7 +22,7 @@ use super::coloring::ColorPlan;
 use super::jacobi::JacobiState;
 use super::momentum::RigidMomentum;
 use crate::closest::{NO_TRIANGLE, SideMemo};
-use crate::constraints::TargetId;
+use crate::constraints::{ConstraintBatch, TargetId};
 use crate::muscle::{ConstraintKind, Muscle};
 use glam::{Vec3, Vec3A, Vec4};
 
@@ -158,17 +158,21 @@ pub(crate) struct SwitchedOn {
 }
 
 impl SwitchedOn {
-    /// Lists the connections of `m` that are on.
+    /// Lists the connections of `m` that are on (not
+    /// [`ConstraintBatch::is_off`]).
     pub fn list(&mut self, m: &Muscle) {
-        let c = &m.constraints;
-        let list = |compliance: &[f32], list: &mut Vec<u32>| {
+        fn list(batch: &impl ConstraintBatch, list: &mut Vec<u32>) {
             list.clear();
-            let finite = compliance.iter().enumerate().filter(|(_, a)| a.is_finite());
-            list.extend(finite.map(|(i, _)| i as u32));
-        };
-        list(&c.soft.compliance, &mut self.soft);
-        list(&c.hard.compliance, &mut self.hard);
-        list(&c.sliding.compliance, &mut self.sliding);
+            list.extend(
+                (0..batch.count())
+                    .filter(|&i| !batch.is_off(i))
+                    .map(|i| i as u32),
+            );
+        }
+        let c = &m.constraints;
+        list(&c.soft, &mut self.soft);
+        list(&c.hard, &mut self.hard);
+        list(&c.sliding, &mut self.sliding);
     }
 
     /// The list for constraints of `kind`, if it keeps one.
