@@ -237,7 +237,7 @@ fn muscle_tables(
 ) -> Result<()> {
     writeln!(
         out,
-        "{:<12}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}{:>14}",
+        "{:<12}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}{:>14}{:>10}",
         "muscle",
         "vol min",
         "vol max",
@@ -246,16 +246,18 @@ fn muscle_tables(
         "at act",
         "attach mm",
         "inside %",
-        "span×"
+        "span×",
+        "forced×"
     )?;
     for (i, m) in solver.muscles().iter().enumerate() {
         let (lo, hi) = metrics.volume_ratio[i];
         let (a, section) = metrics.section_at_peak[i];
         let span = metrics.attachment_span[i]
             .map_or("-".to_string(), |(lo, hi)| format!("{lo:.2}–{hi:.2}"));
+        let forced = metrics.forced_strain_max[i].map_or("-".to_string(), |s| format!("{s:.2}"));
         writeln!(
             out,
-            "{:<12}{:>9.3}{:>9.3}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}{:>14}",
+            "{:<12}{:>9.3}{:>9.3}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}{:>14}{:>10}",
             m.name,
             lo,
             hi,
@@ -264,7 +266,8 @@ fn muscle_tables(
             a,
             metrics.muscle_attachment_max[i] * 1e3,
             metrics.muscle_penetration_max[i] * 100.0,
-            span
+            span,
+            forced
         )?;
     }
     writeln!(
@@ -293,7 +296,7 @@ fn muscle_tables(
     }
     writeln!(
         out,
-        "(span: distance between the muscle's two farthest attachment groups over its rest value, extremes over the run: the mean strain its attachments force along its line; strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
+        "(span: distance between the muscle's two farthest attachment groups over its rest value, extremes over the run: the mean strain along a straight line between them; forced: the largest, over the run, of an attached pair's distance over its shortest rest path along the mesh's edges (pairs on different bones): the largest edge strain is at least this, whatever the solver does; strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
     )?;
     Ok(())
 }

@@ -52,6 +52,13 @@ pub struct RunMetrics {
     /// Per muscle: the smallest and largest [`super::attachment_span`]
     /// over the run (`None`: attached to fewer than two bones).
     pub attachment_span: Vec<Option<(f32, f32)>>,
+    /// Per muscle: the pairs its attachments force a strain through
+    /// ([`super::ForcedStrain`]).
+    pub forced: Vec<super::ForcedStrain>,
+    /// Per muscle: the largest strain its attachments forced in a frame
+    /// (a lower bound on its largest edge strain then; `None`: attached to
+    /// fewer than two bones).
+    pub forced_strain_max: Vec<Option<f32>>,
     /// Per muscle: belly cross-section at rest. Units: m².
     pub rest_section: Vec<f32>,
     /// Per muscle: (activation, section / rest section) at its most active frame.
@@ -203,6 +210,12 @@ impl RunMetrics {
                 .iter()
                 .map(|m| super::attachment_span(m).map(|s| (s, s)))
                 .collect(),
+            forced: solver
+                .muscles()
+                .iter()
+                .map(super::ForcedStrain::new)
+                .collect(),
+            forced_strain_max: vec![None; n],
             rest_section: (0..n).map(|m| belly_cross_section(solver, m)).collect(),
             section_at_peak: vec![(0.0, 1.0); n],
             penetration_every: 1,
@@ -294,6 +307,10 @@ impl RunMetrics {
                 (&mut self.attachment_span[i], super::attachment_span(m))
             {
                 (*lo, *hi) = (lo.min(span), hi.max(span));
+            }
+            if let Some(forced) = self.forced[i].at(&m.x) {
+                let worst = &mut self.forced_strain_max[i];
+                *worst = Some(worst.map_or(forced, |w| w.max(forced)));
             }
             let a = m.params.activation;
             if a > self.activation_max[i] {

@@ -8,11 +8,13 @@
 //! collected frame by frame; [`Thresholds`] and
 //! [`RunMetrics::verdicts`] judge them.
 
+mod forced;
 mod metrics;
 mod shape;
 mod skin;
 mod verdict;
 
+pub use forced::ForcedStrain;
 pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
 pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use skin::{
