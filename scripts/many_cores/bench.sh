@@ -45,3 +45,4 @@ for t in 1 2 4 8; do
     [ "$t" -lt "$top" ] && bench new "$T7" --from 120 --frames 60 --runs 3 --threads "$t"
 done
 bench new "$T7" --from 420 --frames 60 --runs 2 --threads 1
+bench new "$FIT" --from 120 --frames 30 --runs 1 --threads 1
