@@ -189,6 +189,14 @@ fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
             assert!(largest >= f, "{}: edges ×{largest} < forced ×{f}", m.name);
         }
     }
+    // The verdict names what the worst muscle's attachments force.
+    let verdicts = metrics.verdicts(&solver, &Thresholds::default(), scene.motion_end());
+    let strain = verdicts.iter().find(|v| v.figure == "edge strain").unwrap();
+    assert!(
+        strain.value.contains("its attachments force ×"),
+        "{}",
+        strain.value
+    );
 }
 
 /// T5 as shipped (two flexions to 120° in 10 s), run to 2 s after its last

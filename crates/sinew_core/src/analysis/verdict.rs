@@ -220,13 +220,23 @@ impl RunMetrics {
         push(
             "edge strain",
             format!(
-                "min {:.3} ({}, frame {}), max {:.3} ({}, frame {})",
+                "min {:.3} ({}, frame {}), max {:.3} ({}, frame {}{})",
                 -min,
                 name(min_i),
                 self.strain.get(min_i).map_or(0, |s| s.min.1),
                 max,
                 name(max_i),
-                self.strain.get(max_i).map_or(0, |s| s.max.1)
+                self.strain.get(max_i).map_or(0, |s| s.max.1),
+                // What its attachments force of that muscle (a lower bound
+                // on its largest strain): whether the solver or the
+                // attachments stretched it.
+                self.forced_strain_max
+                    .get(max_i)
+                    .copied()
+                    .flatten()
+                    .map_or(String::new(), |f| format!(
+                        "; its attachments force ×{f:.2}"
+                    ))
             ),
             format!("[{}, {}]", limits.strain[0], limits.strain[1]),
             Some(
