@@ -5,7 +5,7 @@
 
 use crate::bench::Overrides;
 use crate::commands::{load_scene, write_stdout};
-use sinew_core::analysis::{RunMetrics, Thresholds};
+use sinew_core::analysis::{ResidualsAtWorst, RunMetrics, Thresholds};
 use std::error::Error;
 use std::fmt::Write as _;
 use std::process::ExitCode;
@@ -112,6 +112,13 @@ pub struct CheckArgs {
     /// active).
     #[arg(long)]
     pub relaxed: bool,
+    /// Also list, per muscle at the frame of its worst edge strain, how far
+    /// one more projection of each constraint type on its own would move
+    /// its surface: which constraints its shape is a compromise between
+    /// (slower: each new worst frame projects a copy of the muscle once
+    /// per type).
+    #[arg(long)]
+    pub residuals: bool,
     #[command(flatten)]
     pub limits: Limits,
     #[command(flatten)]
@@ -138,6 +145,9 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     let mut metrics = RunMetrics::new(&solver, args.depth_mm * 1e-3);
     metrics.penetration_every = args.every.max(1);
     metrics.bulge_activation = args.limits.bulge_activation;
+    if args.residuals {
+        metrics.residuals = Some(ResidualsAtWorst::new(solver.muscles().len()));
+    }
     let mut sensor_ranges: Vec<(String, [f32; 2], [f32; 2])> = Vec::new();
     let start = Instant::now();
     for _ in 0..frames {
@@ -170,6 +180,9 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
         metrics.jiggle_rms()
     )?;
     muscle_tables(&mut out, &metrics, &solver)?;
+    if let Some(residuals) = &metrics.residuals {
+        residual_table(&mut out, residuals, &solver)?;
+    }
     let muscles = solver.muscles();
     for (b, frame) in &metrics.skin_bulges {
         writeln!(
@@ -297,6 +310,53 @@ fn muscle_tables(
     writeln!(
         out,
         "(span: distance between the muscle's two farthest attachment groups over its rest value, extremes over the run: the mean strain along a straight line between them; forced: the largest, over the run, of an attached pair's distance over its shortest rest path along the mesh's edges (pairs on different bones): the largest edge strain is at least this, whatever the solver does; strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
+    )?;
+    Ok(())
+}
+
+/// Per muscle, at the frame of its worst edge strain: the largest surface
+/// displacement one more projection of each constraint type alone would
+/// make (the types that move some muscle by a micrometre or more).
+fn residual_table(
+    out: &mut String,
+    residuals: &ResidualsAtWorst,
+    solver: &sinew_core::Solver,
+) -> Result<()> {
+    let order = &solver.settings.projection_order;
+    let shown: Vec<usize> = (0..order.len())
+        .filter(|&k| {
+            residuals
+                .muscles
+                .iter()
+                .flatten()
+                .any(|(_, _, r)| r[k].max >= 1e-6)
+        })
+        .collect();
+    write!(out, "{:<12}{:>7}{:>8}", "muscle", "frame", "strain")?;
+    for &k in &shown {
+        write!(out, "{:>10}", order[k].label())?;
+    }
+    writeln!(out, "   largest at")?;
+    for (m, worst) in solver.muscles().iter().zip(&residuals.muscles) {
+        let Some((frame, strain, r)) = worst else {
+            continue;
+        };
+        write!(out, "{:<12}{frame:>7}{strain:>8.3}", m.name)?;
+        for &k in &shown {
+            write!(out, "{:>10.2}", r[k].max * 1e3)?;
+        }
+        let top = shown
+            .iter()
+            .map(|&k| &r[k])
+            .max_by(|a, b| a.max.total_cmp(&b.max));
+        match top {
+            Some(top) => writeln!(out, "   {} vertex {}", top.kind.label(), top.vertex)?,
+            None => writeln!(out)?,
+        }
+    }
+    writeln!(
+        out,
+        "(residuals: at each muscle's worst edge strain, how far one more projection of each constraint type on its own, in the projection order, would move its surface, largest over its vertices in mm: two or more types reading millimetres at the same vertices is a shape held between constraints that cannot all hold)"
     )?;
     Ok(())
 }

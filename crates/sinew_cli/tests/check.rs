@@ -41,3 +41,27 @@ fn rest_figures_wait_for_the_motion_to_stop() {
     assert!(report.contains("rest figures not judged"), "{report}");
     assert!(report.contains("rest velocity      -"), "{report}");
 }
+
+#[test]
+fn residuals_list_each_type_at_a_muscles_worst_strain() {
+    // T1 contracts to full activation by frame 60: its worst strain is in
+    // the run, and its fibres and volume have something left to project.
+    let (_, report) = check(&["T1", "--frames", "60", "--residuals"]);
+    let header = report
+        .lines()
+        .find(|l| l.starts_with("muscle") && l.contains("frame") && l.contains("largest at"))
+        .unwrap_or_else(|| panic!("no residual table: {report}"));
+    assert!(header.contains("Fiber"), "{header}");
+    let row = report
+        .lines()
+        .skip_while(|l| *l != header)
+        .nth(1)
+        .expect("a row");
+    let cells: Vec<&str> = row.split_whitespace().collect();
+    let frame: u32 = cells[1].parse().expect("a frame");
+    assert!((1..60).contains(&frame), "{row}");
+    assert!(row.contains(" vertex "), "{row}");
+    // Without the flag, no table.
+    let (_, plain) = check(&["T1", "--frames", "60"]);
+    assert!(!plain.contains("largest at"), "{plain}");
+}

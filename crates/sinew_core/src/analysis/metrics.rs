@@ -77,6 +77,11 @@ pub struct RunMetrics {
     /// Frames the rest figures ([`RunMetrics::recent_motion`]) cover: one
     /// second of simulated time.
     pub window: usize,
+    /// When set (`None` by default: each read projects a copy of the
+    /// muscle once per constraint type), each muscle's constraint
+    /// residuals at the frame of its worst edge strain
+    /// ([`super::ResidualsAtWorst`]).
+    pub residuals: Option<super::ResidualsAtWorst>,
     /// Muscle of each attachment, in [`attachment_errors`] order.
     attachment_owner: Vec<usize>,
     /// Jiggle: sum of squared surface-vertex accelerations measured in the
@@ -240,6 +245,7 @@ impl RunMetrics {
                 .collect(),
             recent: VecDeque::new(),
             scratch: Vec::new(),
+            residuals: None,
         }
     }
 
@@ -408,6 +414,9 @@ impl RunMetrics {
             upper(&mut e.p99, s.strain_p99);
             if s.flipped > self.flipped_max[i].0 {
                 self.flipped_max[i] = (s.flipped, frame);
+            }
+            if let Some(residuals) = &mut self.residuals {
+                residuals.observe(solver, i, &s, frame);
             }
         }
         strains

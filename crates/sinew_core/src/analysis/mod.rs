@@ -10,12 +10,14 @@
 
 mod forced;
 mod metrics;
+mod residual;
 mod shape;
 mod skin;
 mod verdict;
 
 pub use forced::ForcedStrain;
 pub use metrics::{MotionSample, RunMetrics, StrainExtremes};
+pub use residual::{ConstraintResidual, ResidualsAtWorst, constraint_residuals};
 pub use shape::{RestDeviation, ShapeReference, ShapeSample};
 pub use skin::{
     SkinBindDistance, SkinBulge, skin_bind_distances, skin_bulges, skin_inside_vertices,
