@@ -24,7 +24,7 @@ use crate::solver::Solver;
 use crate::solver::pipeline::gauss_seidel;
 
 /// How far one more projection of one constraint type moves a muscle's
-/// surface ([module docs](self)).
+/// surface ([`constraint_residuals`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConstraintResidual {
     /// The constraint type.
