@@ -20,8 +20,8 @@
 
 use super::ShapeSample;
 use crate::muscle::{ConstraintKind, Muscle};
-use crate::solver::Solver;
 use crate::solver::pipeline::gauss_seidel;
+use crate::solver::{FrameParams, Parallelism, Solver};
 
 /// How far one more projection of one constraint type moves a muscle's
 /// surface ([`constraint_residuals`]).
@@ -90,6 +90,14 @@ pub struct ResidualsAtWorst {
     pub muscles: Vec<Option<(u32, f32, Vec<ConstraintResidual>)>>,
 }
 
+/// `1/h²` of the solver's substeps, as its step computes it (the time
+/// scale included).
+fn substep_inv_h2(solver: &Solver) -> f32 {
+    FrameParams::new(&solver.settings, 0, Parallelism::default())
+        .substep(0)
+        .inv_h2
+}
+
 /// A muscle's residuals are read again only when its worst strain has
 /// grown by this factor since they were last read (each read projects a
 /// copy of the muscle once per type).
@@ -114,12 +122,10 @@ impl ResidualsAtWorst {
         if worst <= before * REREAD {
             return;
         }
-        let settings = &solver.settings;
-        let h = settings.dt / settings.substeps.max(1) as f32;
         let residuals = constraint_residuals(
             &solver.muscles()[i],
-            &settings.projection_order,
-            1.0 / (h * h),
+            &solver.settings.projection_order,
+            substep_inv_h2(solver),
         );
         let strain = if stretch >= squeeze {
             stretch
@@ -146,9 +152,19 @@ mod tests {
         solver
     }
 
-    fn inv_h2(solver: &crate::solver::Solver) -> f32 {
-        let h = solver.settings.dt / solver.settings.substeps as f32;
-        1.0 / (h * h)
+    #[test]
+    fn residuals_are_projected_at_the_solvers_own_substep() {
+        let mut scene = builtin("T1").expect("T1 is built in");
+        scene.settings.time_scale = 0.5;
+        scene.settings.substeps = 2;
+        let solver = scene.instantiate(std::path::Path::new(".")).unwrap();
+        let h = scene.settings.dt * 0.5 / 2.0;
+        let inv_h2 = substep_inv_h2(&solver);
+        assert!(
+            (inv_h2 * h * h - 1.0).abs() < 1e-5,
+            "{inv_h2} vs {}",
+            1.0 / (h * h)
+        );
     }
 
     #[test]
@@ -156,7 +172,7 @@ mod tests {
         let solver = t1(0);
         let m = &solver.muscles()[0];
         let order = &solver.settings.projection_order;
-        let residuals = constraint_residuals(m, order, inv_h2(&solver));
+        let residuals = constraint_residuals(m, order, substep_inv_h2(&solver));
         assert_eq!(residuals.len(), order.len());
         for r in &residuals {
             assert!(r.max < 1e-6, "{r:?}");
@@ -171,7 +187,7 @@ mod tests {
             .find(|&v| m.attachments.iter().all(|a| a.vertex.index() != v))
             .unwrap();
         m.x[free].y += 0.004;
-        let residuals = constraint_residuals(&m, &[ConstraintKind::Fiber], inv_h2(&solver));
+        let residuals = constraint_residuals(&m, &[ConstraintKind::Fiber], substep_inv_h2(&solver));
         let fiber = residuals[0];
         // Rigid edges put a lone displaced vertex most of the way back.
         assert_eq!(fiber.vertex as usize, free, "{fiber:?}");
