@@ -245,6 +245,14 @@ pub struct Muscle {
     /// ([`MuscleParams::hold_release`]; only for a muscle built with
     /// `hold_shape`). Range `[0.01, 1]`. Default: `1`.
     pub hold_release: f32,
+    /// How a held line bends at its ends, in chord lengths
+    /// ([`MuscleParams::hold_bend`]; only for a muscle holding its shape
+    /// along its line). Unitless, range `[0, 4]`. Default: `0`.
+    pub hold_bend: f32,
+    /// How far each end's held rings turn about their tendon's tip
+    /// towards the line ([`MuscleParams::tendon_pivot`]). Unitless, range
+    /// `[0, 1]`. Default: `0`.
+    pub tendon_pivot: f32,
 }
 
 impl Default for Muscle {
@@ -269,6 +277,8 @@ impl Muscle {
             max_contraction: p.max_contraction,
             rest_activation: p.rest_activation,
             hold_release: p.hold_release,
+            hold_bend: p.hold_bend,
+            tendon_pivot: p.tendon_pivot,
         }
     }
 
@@ -285,6 +295,8 @@ impl Muscle {
         p.max_contraction = self.max_contraction;
         p.rest_activation = self.rest_activation;
         p.hold_release = self.hold_release;
+        p.hold_bend = self.hold_bend;
+        p.tendon_pivot = self.tendon_pivot;
         let (compliance, weights): (Compliances, CoreWeights) =
             (self.compliance.into(), self.weights.into());
         let changed = compliance != p.compliance || weights != p.weights;

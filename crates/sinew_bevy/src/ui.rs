@@ -406,6 +406,14 @@ fn muscle_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
         .on_hover_text(
             "a muscle that holds its shape on its bones: what is left of the hold when fully active",
         );
+    ui.add(egui::Slider::new(&mut edit.hold_bend, 0.0..=4.0).text("held line bend"))
+        .on_hover_text(
+            "a muscle held along its line: how far the line leaves each end along its bone (chord lengths; 0 straight)",
+        );
+    ui.add(egui::Slider::new(&mut edit.tendon_pivot, 0.0..=1.0).text("tendon pivot"))
+        .on_hover_text(
+            "a muscle held along its line: how far its end rings turn about the tendon's tip towards the line",
+        );
     ui.label("connection weights (per vertex maps override)");
     let w = &mut edit.weights;
     for (name, value) in [

@@ -142,7 +142,9 @@ fn t5_without_its_motion_settles_in_its_shape() {
 /// The span assumes a straight muscle; what the attachments force on the
 /// edges is the forced strain (`analysis::ForcedStrain`: an attached
 /// pair's distance over its shortest rest path along the edges): the
-/// triceps' edges must stretch ×1.2 and more, but the anconeus, a ball of
+/// triceps' edges must stretch ×1.15 and more (×1.24 before their
+/// tendons turned towards the line where they insert,
+/// `MuscleParams::tendon_pivot`), but the anconeus, a ball of
 /// 15 mm radius on a 21 mm path whose surface paths from end to end are
 /// 50 mm long, is not forced at all. Every muscle's largest edge strain is
 /// at least its forced strain (the bound holds).
@@ -181,7 +183,7 @@ fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
         forced("ANC"),
         forced("BRA")
     );
-    assert!(forced("TRIlong") > 1.2 && forced("TRImed") > 1.3);
+    assert!(forced("TRIlong") > 1.1 && forced("TRImed") > 1.2);
     assert!(forced("ANC") < 1.0 && forced("BRA") < 1.0);
     for (i, m) in solver.muscles().iter().enumerate() {
         if let Some(f) = metrics.forced_strain_max[i] {
@@ -268,4 +270,45 @@ fn t5s_held_shapes_follow_the_line_of_action_through_the_flexion() {
     eprintln!("largest strain, folded triangles: line {line:?}, bones {bones:?}");
     assert!(line.0 < 4.0 && bones.0 > 5.0, "{line:?} {bones:?}");
     assert!((line.1 as f32) < 0.8 * bones.1 as f32, "{line:?} {bones:?}");
+}
+
+/// T5 through its first flexion (150 frames) with its held lines bent at
+/// their ends and its tendons pivoting where they insert (`hold_bend`,
+/// `tendon_pivot` in T5's recipe), against the same scene with straight
+/// lines and the end rings held as their bones carry them: the triceps,
+/// the flexor carpi radialis and the extensor carpi radialis longus fold
+/// nothing (straight, their necks folded: 40 triangles and more), the
+/// elbow's muscles fold less than half as many triangles, and every
+/// attachment is where its tendon puts it (the tips on their bones).
+#[test]
+fn t5s_held_lines_bend_and_its_tendons_pivot_where_they_insert() {
+    const NECKS: [&str; 5] = ["TRIlong", "TRIlat", "TRImed", "FCR", "ECRL"];
+    const ELBOW: [&str; 10] = [
+        "TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA", "BRD", "PT", "FCR", "ECRL",
+    ];
+    let path = t5_path();
+    let shipped = Scene::load(&path).unwrap();
+    assert!(shipped.muscles.iter().all(|m| m.params.hold_bend == 1.0));
+    assert!(shipped.muscles.iter().all(|m| m.params.tendon_pivot == 0.7));
+    let mut straight = shipped.clone();
+    for m in &mut straight.muscles {
+        m.params.hold_bend = 0.0;
+        m.params.tendon_pivot = 0.0;
+    }
+    let figures = |scene: &Scene| {
+        let (solver, metrics) = run(scene, path.parent().unwrap(), 150, 1000);
+        let folded = |names: &[&str]| -> usize {
+            let index = |n: &&str| solver.muscle_index(n).unwrap();
+            names.iter().map(|n| metrics.flipped_max[index(n)].0).sum()
+        };
+        (folded(&NECKS), folded(&ELBOW), metrics.attachment_error_max)
+    };
+    let (bent, line) = (figures(&shipped), figures(&straight));
+    eprintln!(
+        "folded at the necks, at the elbow, attachment error: bent {bent:?}, straight {line:?}"
+    );
+    assert_eq!(bent.0, 0, "{bent:?}");
+    assert!(line.0 >= 40, "{line:?}");
+    assert!(2 * bent.1 < line.1, "{bent:?} {line:?}");
+    assert!(bent.2 < 1e-3 && line.2 < 1e-3, "{bent:?} {line:?}");
 }

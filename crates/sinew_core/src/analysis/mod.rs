@@ -132,16 +132,37 @@ pub fn attachment_span(m: &Muscle) -> Option<f32> {
     Some(now[i].distance(now[j]) / rest)
 }
 
-/// Distance of every attached vertex from its bone point. Units: m (scene
-/// units ÷ [`crate::SolverSettings::length_unit`]), as every figure here.
+/// Distance of every attached vertex from its goal: its bone point, turned
+/// about its tendon's tip where the muscle's held line pivots
+/// ([`crate::muscle::MuscleParams::tendon_pivot`]). Units: m (scene units
+/// ÷ [`crate::SolverSettings::length_unit`]), as every figure here.
 pub fn attachment_errors(solver: &Solver) -> impl Iterator<Item = f32> + '_ {
+    let bones = solver.bones();
     solver.muscles().iter().flat_map(move |m| {
-        m.attachments.iter().map(move |a| {
-            let pose = a
-                .bone
-                .map_or(glam::Affine3A::IDENTITY, |b| solver.bones()[b].transform);
-            m.x[a.vertex.index()].distance(pose.transform_point3(a.vertex_local)) / m.length_unit
-        })
+        let pose =
+            |bone: Option<usize>| bone.map_or(glam::Affine3A::IDENTITY, |b| bones[b].transform);
+        let mut goals: Vec<glam::Vec3> = m
+            .attachments
+            .iter()
+            .map(|a| pose(a.bone).transform_point3(a.vertex_local))
+            .collect();
+        if let Some(line) = m.hold_line.as_ref().filter(|_| m.params.tendon_pivot > 0.0) {
+            let now = line.pose(
+                &|b| bones[b].transform,
+                crate::muscle::LineShape::of(&m.params),
+            );
+            let mut internal: Vec<glam::Vec3> = m
+                .attachments
+                .iter()
+                .filter(|a| a.internal_particle.is_some())
+                .map(|a| pose(a.bone).transform_point3(a.internal_local))
+                .collect();
+            line.turn_attachments(&now, &m.attachments, &mut goals, &mut internal);
+        }
+        m.attachments
+            .iter()
+            .zip(goals)
+            .map(move |(a, goal)| m.x[a.vertex.index()].distance(goal) / m.length_unit)
     })
 }
 

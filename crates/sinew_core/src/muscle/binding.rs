@@ -10,7 +10,7 @@
 //! the vertex towards it with compliance
 //! [`Compliances::bind`](super::Compliances::bind) ÷ the vertex's strength.
 
-use super::Muscle;
+use super::{LinePose, LineShape, Muscle};
 use crate::closest::TargetSurface;
 use crate::constraints::{ParticleId, PointBatch};
 use crate::error::BuildError;
@@ -228,12 +228,25 @@ pub fn bind_constraints(m: &Muscle) -> PointBatch {
 /// projection, with the attachments'): skinned, or along the muscle's line
 /// of action where its held shape follows one ([`Muscle::hold_line`]).
 pub fn update_bind_goals(m: &mut Muscle, pose: &impl Fn(usize) -> Affine3A) {
+    let line = m
+        .hold_line
+        .as_ref()
+        .map(|line| line.pose(pose, LineShape::of(&m.params)));
+    update_bind_goals_in(m, pose, line.as_ref());
+}
+
+/// [`update_bind_goals`] with the hold line's pose already taken (`line`,
+/// `None` for a muscle without one).
+pub(crate) fn update_bind_goals_in(
+    m: &mut Muscle,
+    pose: &impl Fn(usize) -> Affine3A,
+    line: Option<&LinePose>,
+) {
     let goals = m.constraints.bind.goal.iter_mut().zip(&m.binding);
-    match &m.hold_line {
-        Some(line) => {
-            let now = line.pose(pose);
+    match m.hold_line.as_ref().zip(line) {
+        Some((line, now)) => {
             for (goal, b) in goals {
-                *goal = line.goal(&now, b.vertex.index());
+                *goal = line.goal(now, b.vertex.index());
             }
         }
         None => {

@@ -24,12 +24,33 @@
 //! elbow flexion its goals alone are folded at 85 triangles of the biceps'
 //! long head and 88 of the brachialis, the triceps' edges ×3.5–×4.1 at
 //! the 99th percentile.
+//!
+//! Two parameters change it ([`LineShape`]):
+//! - **Tendon pivot** ([`super::MuscleParams::tendon_pivot`], `φ`): each
+//!   end group (its held rings: the tendon's end) turns about its tip —
+//!   the group's vertex farthest out along the line, which stays where its
+//!   bone carries it — by `T_e = slerp(1, arc(B_e a₀ → a), φ)`, `B_e` its
+//!   bone's rotation since rest: a tendon bends where it inserts. The
+//!   attachment goals turn with it ([`HoldLine::turn_attachments`]) and
+//!   the line runs between the turned groups' centroids.
+//! - **Bend** ([`super::MuscleParams::hold_bend`], `k`): the line is a
+//!   curve leaving each end along `T_e B_e a₀` ([`super::hold_curve`]),
+//!   so the belly turns from one end's direction to the other's over its
+//!   length, not all at the rings next to the held ones.
+//!
+//! On T5 (`sinew check assets/scenes/t5.ron`) the straight line with the
+//! rings held on their bones folded 276 triangles over the run (each
+//! muscle's worst frame, summed), the triceps' necks ×1.9–×2.5; bent
+//! (`k = 1`) with the tendons pivoting (`φ = 0.7`) see ARCHITECTURE.md,
+//! "Rest and shape".
 
-use super::params::HoldFrame;
+use super::Attachment;
+use super::hold_curve::BentLine;
+use super::params::{HoldFrame, MuscleParams};
 use glam::{Affine3A, Quat, Vec3};
 
 /// One end of the line: a group of held vertices on one bone.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 struct LineEnd {
     /// Bone (solver index).
     bone: usize,
@@ -37,6 +58,34 @@ struct LineEnd {
     local: Vec3,
     /// The bone's rotation at rest, inverted.
     rest_rotation_inv: Quat,
+    /// The group's vertex farthest out along the line (the tendon's tip):
+    /// what a tendon pivot turns the group about.
+    tip: u32,
+    /// The tip in the bone's frame.
+    tip_local: Vec3,
+    /// The group's held vertices, sorted.
+    held: Vec<u32>,
+}
+
+/// How a held line is shaped: [`MuscleParams::hold_bend`] and
+/// [`MuscleParams::tendon_pivot`] (read every substep, so a live edit
+/// takes effect at once).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LineShape {
+    /// Tangent length at the ends, in chord lengths (0: straight).
+    pub bend: f32,
+    /// Share of the turn onto the line each end group takes about its tip.
+    pub pivot: f32,
+}
+
+impl LineShape {
+    /// The shape `params` ask for.
+    pub fn of(params: &MuscleParams) -> Self {
+        Self {
+            bend: params.hold_bend,
+            pivot: params.tendon_pivot,
+        }
+    }
 }
 
 /// A muscle's line of action and its surface's rest positions about it
@@ -75,16 +124,34 @@ impl HoldLine {
         );
         let points: Vec<Vec3> = centroids.iter().map(|c| c.1).collect();
         let (length, i, j) = super::farthest_pair(&points)?;
-        let end = |(bone, centroid): (usize, Vec3)| {
+        let origin = centroids[i].1;
+        let axis = (centroids[j].1 - origin) / length;
+        // `outward`: +1 at the origin's end (its tip lies least far along
+        // the axis), −1 at the other.
+        let end = |(bone, centroid): (usize, Vec3), outward: f32| {
             let rest = bone_transform(bone);
+            let mut group: Vec<u32> = held
+                .iter()
+                .filter(|&&(b, _)| b == Some(bone))
+                .map(|&(_, v)| v)
+                .collect();
+            let reach = |v: &u32| outward * axis.dot(positions[*v as usize]);
+            let tip = group
+                .iter()
+                .copied()
+                .min_by(|a, b| reach(a).total_cmp(&reach(b)))
+                .expect("a group holds at least one vertex");
+            group.sort_unstable();
+            group.dedup();
             LineEnd {
                 bone,
                 local: rest.inverse().transform_point3(centroid),
                 rest_rotation_inv: rotation_of(&rest).inverse(),
+                tip,
+                tip_local: rest.inverse().transform_point3(positions[tip as usize]),
+                held: group,
             }
         };
-        let origin = centroids[i].1;
-        let axis = (centroids[j].1 - origin) / length;
         let offsets = positions
             .iter()
             .map(|&r| {
@@ -93,7 +160,7 @@ impl HoldLine {
             })
             .collect();
         Some(Self {
-            ends: [end(centroids[i]), end(centroids[j])],
+            ends: [end(centroids[i], 1.0), end(centroids[j], -1.0)],
             origin,
             axis,
             length,
@@ -101,23 +168,66 @@ impl HoldLine {
         })
     }
 
-    /// The map of this pose (bones at `pose`), for [`HoldLine::goal`].
-    pub fn pose(&self, pose: &impl Fn(usize) -> Affine3A) -> LinePose {
-        let [o, i] = self.ends.map(|e| pose(e.bone).transform_point3(e.local));
+    /// The map of this pose (bones at `pose`), shaped as `shape` says, for
+    /// [`HoldLine::goal`] and [`HoldLine::turn_attachments`].
+    pub fn pose(&self, pose: &impl Fn(usize) -> Affine3A, shape: LineShape) -> LinePose {
+        let bones = [0, 1].map(|k| {
+            let e = &self.ends[k];
+            (rotation_of(&pose(e.bone)) * e.rest_rotation_inv).normalize()
+        });
+        let [o, i] = [0, 1].map(|k| pose(self.ends[k].bone).transform_point3(self.ends[k].local));
+        let chord = (i - o).try_normalize().unwrap_or(self.axis);
+        // Each group turned about its tip by the pivot's share of the
+        // arc from its bone-carried axis onto the chord.
+        let turns = [0, 1].map(|k| {
+            if shape.pivot <= 0.0 {
+                return Quat::IDENTITY;
+            }
+            let onto = Quat::from_rotation_arc(bones[k] * self.axis, chord);
+            Quat::IDENTITY.slerp(onto, shape.pivot).normalize()
+        });
+        // Each end's frame: its bone's rotation, turned (without a pivot,
+        // the bone's alone, bit for bit).
+        let frames = [0, 1].map(|k| {
+            if shape.pivot > 0.0 {
+                (turns[k] * bones[k]).normalize()
+            } else {
+                bones[k]
+            }
+        });
+        let [o, i] = if shape.pivot > 0.0 {
+            [(0, o), (1, i)].map(|(k, centroid)| {
+                let e = &self.ends[k];
+                let tip = pose(e.bone).transform_point3(e.tip_local);
+                tip + turns[k] * (centroid - tip)
+            })
+        } else {
+            [o, i]
+        };
         let d = i - o;
         let length = d.length();
         let axis = if length > 0.0 { d / length } else { self.axis };
         let stretch = (length / self.length).clamp(1.0 / MAX_STRETCH, MAX_STRETCH);
-        let turn = |e: &LineEnd| {
-            let r = (rotation_of(&pose(e.bone)) * e.rest_rotation_inv).normalize();
-            (Quat::from_rotation_arc(r * self.axis, axis) * r).normalize()
-        };
-        let rotations = [turn(&self.ends[0]), turn(&self.ends[1])];
+        let rotations =
+            frames.map(|r| (Quat::from_rotation_arc(r * self.axis, axis) * r).normalize());
+        let curve = (shape.bend > 0.0).then(|| {
+            BentLine::new(
+                o,
+                i,
+                frames,
+                self.axis,
+                self.length,
+                shape.bend,
+                MAX_STRETCH,
+            )
+        });
         LinePose {
             origin: o,
             rotations,
             along: stretch,
             across: stretch.sqrt().recip(),
+            turns,
+            curve,
         }
     }
 
@@ -125,21 +235,66 @@ impl HoldLine {
     #[inline]
     pub fn goal(&self, line: &LinePose, v: usize) -> Vec3 {
         let (u, t) = self.offsets[v];
+        if let Some(curve) = &line.curve {
+            return curve.goal(self.axis, self.length, u);
+        }
         let along = self.axis.dot(u);
         let local = line.along * along * self.axis + line.across * (u - along * self.axis);
         let rotation = line.rotations[0].slerp(line.rotations[1], t);
         line.origin + rotation * local
     }
+
+    /// Turns the attachment goals of each end group about its tip by the
+    /// pose's tendon turn: `goals[i]` and `internal_goals` (one per
+    /// attachment with an internal particle, in order) are where the
+    /// bones carry `attachments` now. An end whose tip is not attached
+    /// (detached at run time) stays as its bone carries it.
+    pub fn turn_attachments(
+        &self,
+        line: &LinePose,
+        attachments: &[Attachment],
+        goals: &mut [Vec3],
+        internal_goals: &mut [Vec3],
+    ) {
+        for (end, turn) in self.ends.iter().zip(line.turns) {
+            if turn == Quat::IDENTITY {
+                continue;
+            }
+            let Some(tip) = attachments
+                .iter()
+                .position(|a| a.vertex.index() == end.tip as usize)
+                .map(|i| goals[i])
+            else {
+                continue;
+            };
+            let mut k = 0;
+            for (i, a) in attachments.iter().enumerate() {
+                let turned = end.held.binary_search(&(a.vertex.index() as u32)).is_ok();
+                if turned {
+                    goals[i] = tip + turn * (goals[i] - tip);
+                }
+                if a.internal_particle.is_some() {
+                    if turned {
+                        internal_goals[k] = tip + turn * (internal_goals[k] - tip);
+                    }
+                    k += 1;
+                }
+            }
+        }
+    }
 }
 
-/// [`HoldLine`] in one pose: the line's origin, its two ends' rotations and
-/// the stretch along and across it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// [`HoldLine`] in one pose: the line's origin, its two ends' rotations,
+/// the stretch along and across it, each end group's turn about its tip
+/// and, when it bends, the curve.
+#[derive(Clone, Debug, PartialEq)]
 pub struct LinePose {
     origin: Vec3,
     rotations: [Quat; 2],
     along: f32,
     across: f32,
+    turns: [Quat; 2],
+    curve: Option<BentLine>,
 }
 
 /// The rotation of a bone's pose (a fitted skeleton's bones may carry a
@@ -181,7 +336,7 @@ mod tests {
     fn at_rest_every_goal_is_its_rest_position() {
         let (positions, held) = bar();
         let line = HoldLine::new(&positions, &held, &|_| Affine3A::IDENTITY).unwrap();
-        let pose = line.pose(&|_| Affine3A::IDENTITY);
+        let pose = line.pose(&|_| Affine3A::IDENTITY, LineShape::default());
         for (v, &r) in positions.iter().enumerate() {
             assert!(line.goal(&pose, v).distance(r) < 1e-6, "{v}");
         }
@@ -195,7 +350,7 @@ mod tests {
         let moved = |b: usize| {
             Affine3A::from_translation(Vec3::new(if b == 1 { 0.44 } else { 0.0 }, 0.0, 0.0))
         };
-        let pose = line.pose(&moved);
+        let pose = line.pose(&moved, LineShape::default());
         assert!(line.goal(&pose, 1).distance(Vec3::new(1.44, 0.0, 0.0)) < 1e-5);
         let g = line.goal(&pose, 2);
         assert!((g.x - 0.72).abs() < 1e-5, "{g}");
@@ -216,7 +371,7 @@ mod tests {
                 Affine3A::IDENTITY
             }
         };
-        let pose = line.pose(&moved);
+        let pose = line.pose(&moved, LineShape::default());
         assert!(line.goal(&pose, 1).distance(Vec3::new(0.0, 1.0, 0.0)) < 1e-5);
         // Vertex 2, half-way along and 0.2 to the side (+Y at rest): the
         // line turned +90° about Z, so +Y went to −X, and half the twist
@@ -229,6 +384,62 @@ mod tests {
             (g.x + half).abs() < 1e-5 && (g.z - half).abs() < 1e-5,
             "{g}"
         );
+    }
+
+    #[test]
+    fn a_pivoting_tendon_turns_its_group_about_the_tip_towards_the_line() {
+        // End 0 holds vertices 0 (its tip, farthest out) and 4; end 1 holds 1.
+        let (mut positions, _) = bar();
+        positions.push(Vec3::new(0.1, 0.05, 0.0));
+        let held = [(Some(0), 0), (Some(0), 4), (Some(1), 1)];
+        let line = HoldLine::new(&positions, &held, &|_| Affine3A::IDENTITY).unwrap();
+        let attachments: Vec<Attachment> = held
+            .iter()
+            .map(|&(bone, v)| Attachment {
+                bone,
+                vertex: crate::constraints::ParticleId::from_index(v as usize),
+                internal_particle: None,
+                vertex_local: positions[v as usize],
+                internal_local: Vec3::ZERO,
+            })
+            .collect();
+        let goals_at = |pose: &dyn Fn(usize) -> Affine3A| -> Vec<Vec3> {
+            held.iter()
+                .map(|&(b, v)| pose(b.unwrap()).transform_point3(positions[v as usize]))
+                .collect()
+        };
+        let shape = LineShape {
+            bend: 0.0,
+            pivot: 0.5,
+        };
+        // At rest nothing turns.
+        let rest = |_: usize| Affine3A::IDENTITY;
+        let mut goals = goals_at(&rest);
+        line.turn_attachments(&line.pose(&rest, shape), &attachments, &mut goals, &mut []);
+        assert_eq!(goals, goals_at(&rest));
+        // Bone 1 swung about the origin by 90°: the chord now runs up +Y.
+        let swung = |b: usize| {
+            if b == 1 {
+                Affine3A::from_rotation_z(std::f32::consts::FRAC_PI_2)
+            } else {
+                Affine3A::IDENTITY
+            }
+        };
+        let carried = goals_at(&swung);
+        let mut goals = carried.clone();
+        let now = line.pose(&swung, shape);
+        line.turn_attachments(&now, &attachments, &mut goals, &mut []);
+        assert_eq!(goals[0], carried[0], "the tip stays on its bone");
+        assert_eq!(goals[2], carried[2], "end 1's tip stays on its bone");
+        let (before, after) = (carried[1] - carried[0], goals[1] - goals[0]);
+        assert!((before.length() - after.length()).abs() < 1e-6);
+        // The chord from end 0's centroid to end 1's turned by ~85° from
+        // the rest axis; half of that is the group's turn.
+        let chord = (carried[2] - (carried[0] + carried[1]) / 2.0).normalize();
+        let full = Quat::from_rotation_arc(line.axis, chord).to_axis_angle().1;
+        let turned = before.angle_between(after);
+        assert!((turned - full / 2.0).abs() < 1e-4, "{turned} vs {full}");
+        assert!(after.normalize().dot(chord) > before.normalize().dot(chord));
     }
 
     #[test]

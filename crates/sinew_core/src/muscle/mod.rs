@@ -11,6 +11,7 @@ mod build;
 mod constraints;
 mod desc;
 mod fiber;
+mod hold_curve;
 mod hold_line;
 mod internal;
 mod mass;
@@ -18,6 +19,7 @@ mod params;
 mod tuning;
 
 pub(crate) use attachment_groups::{farthest_pair, group_centroids};
+pub(crate) use binding::update_bind_goals_in;
 pub use binding::{BoundVertex, MAX_BONES, SkinBindingDesc, bind_constraints, update_bind_goals};
 pub use build::{area_triangles, branch_links, fiber_edges, internal_links};
 pub(crate) use constraints::{BATCHED_KINDS, MuscleLambdas};
@@ -25,7 +27,7 @@ pub use constraints::{Compliances, ConstraintCounts, ConstraintKind, MuscleConst
 pub(crate) use desc::held_by;
 pub use desc::{AttachmentDesc, MuscleDesc, Roots, TargetRef, VertexMaps};
 pub use fiber::{fiber_field, longest_axis};
-pub use hold_line::{HoldLine, LinePose};
+pub use hold_line::{HoldLine, LinePose, LineShape};
 pub use internal::{InternalStructure, InternalStructureParams};
 pub use params::{ConnectionWeights, HoldFrame, MAX_FIBER_SMOOTHING, MassMode, MuscleParams};
 

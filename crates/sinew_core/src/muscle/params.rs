@@ -159,6 +159,28 @@ pub struct MuscleParams {
     /// [`HoldFrame::Bones`].
     #[serde(skip_serializing_if = "is_default_hold_frame")]
     pub hold_frame: HoldFrame,
+    /// How a held shape's line ([`HoldFrame::Line`]) bends at its ends: `0`
+    /// runs it straight from one attachment group to the other; above
+    /// `0` it is a cubic curve that leaves each group along the direction
+    /// its bone carries the muscle's rest axis (turned by
+    /// [`Self::tendon_pivot`]), with end tangents this many chord lengths
+    /// long — so the belly bends over a span of its length where a
+    /// straight line turns it all at the rings next to the held ones
+    /// ([`crate::muscle::HoldLine`]). T5 uses `1`. Unitless, range
+    /// `[0, 4]`. Default: `0`.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub hold_bend: f32,
+    /// How far each attachment group of a muscle whose held shape follows
+    /// its line ([`HoldFrame::Line`]) turns about its tendon's tip towards
+    /// that line: the group's held vertices — the tendon's end rings — are
+    /// carried by their bone and then turned about the tip (the group's
+    /// vertex farthest out along the line, which stays where its bone
+    /// carries it) by this fraction of the angle between the bone-carried
+    /// rest axis and the line, as a tendon bends where it inserts. `0`
+    /// holds every ring as its bone carries it; `1` turns it onto the
+    /// line. T5 uses `0.7`. Unitless, range `[0, 1]`. Default: `0`.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub tendon_pivot: f32,
 }
 
 /// What carries a held shape ([`MuscleParams::hold_shape`]) as the bones
@@ -190,6 +212,11 @@ fn is_default_hold_frame(frame: &HoldFrame) -> bool {
 /// Whether `mode` is the default (left out of scene files).
 fn is_default_area_mode(mode: &AreaMode) -> bool {
     *mode == AreaMode::default()
+}
+
+/// Whether `x` is 0 (a default left out of scene files).
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 /// Whether `x` is 1 (a default left out of scene files).
@@ -229,6 +256,8 @@ impl Default for MuscleParams {
             hold_shape: false,
             hold_release: 1.0,
             hold_frame: HoldFrame::Bones,
+            hold_bend: 0.0,
+            tendon_pivot: 0.0,
         }
     }
 }
@@ -299,6 +328,8 @@ impl MuscleParams {
             ("max_contraction", self.max_contraction, 0.0, 1.0),
             ("damping", self.damping, 0.0, 1000.0),
             ("hold_release", self.hold_release, 0.01, 1.0),
+            ("hold_bend", self.hold_bend, 0.0, 4.0),
+            ("tendon_pivot", self.tendon_pivot, 0.0, 1.0),
             (
                 "volume.gain",
                 self.volume.gain,

@@ -37,7 +37,7 @@ use super::workspace::{MuscleWorkspace, SwitchedOn};
 use crate::closest::{TargetSet, TargetSurface};
 use crate::constraints::{BatchFnMut, ConstraintBatch};
 use crate::muscle::ConstraintKind;
-use crate::muscle::Muscle;
+use crate::muscle::{LineShape, Muscle};
 use glam::{Affine3A, Vec3};
 
 pub use super::closest_data::closest_data;
@@ -262,7 +262,9 @@ pub fn plan_kind(method: SolverMethod) -> Option<(PlanKind, f32)> {
 }
 
 /// Moves every attachment goal of `m` to its bone's pose at the substep's
-/// end (`pose(bone)`; `None`: the world), and every Bind goal to its
+/// end (`pose(bone)`; `None`: the world) — its end groups turned about
+/// their tendons' tips where the muscle's held line says
+/// ([`crate::muscle::MuscleParams::tendon_pivot`]) — and every Bind goal to its
 /// vertex's skinned position for the poses of the binding's bones
 /// (`bind_pose(bone)`: a host that numbers a muscle's attachment bones on
 /// their own, as the Bevy plug-in does, numbers the binding's apart).
@@ -280,7 +282,20 @@ pub fn update_attachment_goals(
             k += 1;
         }
     }
-    crate::muscle::update_bind_goals(m, bind_pose);
+    let line = m
+        .hold_line
+        .as_ref()
+        .map(|line| line.pose(bind_pose, LineShape::of(&m.params)));
+    if let (Some(hold), Some(now)) = (&m.hold_line, &line) {
+        let c = &mut m.constraints;
+        hold.turn_attachments(
+            now,
+            &m.attachments,
+            &mut c.attach.goal,
+            &mut c.branch_attach.goal,
+        );
+    }
+    crate::muscle::update_bind_goals_in(m, bind_pose, line.as_ref());
 }
 
 /// Explicit Euler prediction with gravity and damping: over a substep of
