@@ -253,6 +253,9 @@ pub struct Muscle {
     /// towards the line ([`MuscleParams::tendon_pivot`]). Unitless, range
     /// `[0, 1]`. Default: `0`.
     pub tendon_pivot: f32,
+    /// Whether the rest lengths follow the held shape
+    /// ([`MuscleParams::rest_follows_hold`]). Default: `false`.
+    pub rest_follows_hold: bool,
 }
 
 impl Default for Muscle {
@@ -279,6 +282,7 @@ impl Muscle {
             hold_release: p.hold_release,
             hold_bend: p.hold_bend,
             tendon_pivot: p.tendon_pivot,
+            rest_follows_hold: p.rest_follows_hold,
         }
     }
 
@@ -297,6 +301,7 @@ impl Muscle {
         p.hold_release = self.hold_release;
         p.hold_bend = self.hold_bend;
         p.tendon_pivot = self.tendon_pivot;
+        p.rest_follows_hold = self.rest_follows_hold;
         let (compliance, weights): (Compliances, CoreWeights) =
             (self.compliance.into(), self.weights.into());
         let changed = compliance != p.compliance || weights != p.weights;

@@ -414,6 +414,13 @@ fn muscle_panel(ui: &mut egui::Ui, m: &mut Mut<Muscle>) {
         .on_hover_text(
             "a muscle held along its line: how far its end rings turn about the tendon's tip towards the line",
         );
+    ui.checkbox(
+        &mut edit.rest_follows_hold,
+        "rest lengths follow the held shape",
+    )
+    .on_hover_text(
+        "a muscle held along its line: its edges and internal links take the held shape's lengths",
+    );
     ui.label("connection weights (per vertex maps override)");
     let w = &mut edit.weights;
     for (name, value) in [

@@ -154,6 +154,11 @@ pub struct DistanceBatch {
     /// [`DistanceBatch::arrange_in_runs`] (runs that share no particle);
     /// empty, or not as long as the batch: the batch's own order.
     pub solve_order: Vec<u32>,
+    /// The rest lengths the activation gives, kept apart while something
+    /// else sets `rest` from them (a muscle whose rest lengths follow its
+    /// held shape, [`crate::muscle::MuscleParams::rest_follows_hold`]);
+    /// empty otherwise.
+    pub own_rest: Vec<f32>,
 }
 
 impl DistanceBatch {
@@ -189,6 +194,9 @@ impl DistanceBatch {
                 *r = act.rest_length(i, mode, scale);
             }
             act.applied = Some((mode, *scale));
+            if !self.own_rest.is_empty() {
+                self.own_rest.clone_from(&self.rest);
+            }
         }
     }
 

@@ -248,6 +248,7 @@ pub(crate) fn update_bind_goals_in(
             for (goal, b) in goals {
                 *goal = line.goal(now, b.vertex.index());
             }
+            m.follow_held_rest(now);
         }
         None => {
             for (goal, b) in goals {

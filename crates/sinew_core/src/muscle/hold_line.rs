@@ -235,6 +235,20 @@ impl HoldLine {
     #[inline]
     pub fn goal(&self, line: &LinePose, v: usize) -> Vec3 {
         let (u, t) = self.offsets[v];
+        self.goal_at(line, u, t)
+    }
+
+    /// The goal of any rest point `r` (an internal point, say) in the pose
+    /// `line`: the same map as the surface's.
+    pub fn goal_of(&self, line: &LinePose, r: Vec3) -> Vec3 {
+        let u = r - self.origin;
+        self.goal_at(line, u, (self.axis.dot(u) / self.length).clamp(0.0, 1.0))
+    }
+
+    /// The goal of the rest offset `u` from `O₀`, `t` its clamped fraction
+    /// along the line.
+    #[inline]
+    fn goal_at(&self, line: &LinePose, u: Vec3, t: f32) -> Vec3 {
         if let Some(curve) = &line.curve {
             return curve.goal(self.axis, self.length, u);
         }

@@ -181,6 +181,19 @@ pub struct MuscleParams {
     /// line. T5 uses `0.7`. Unitless, range `[0, 1]`. Default: `0`.
     #[serde(skip_serializing_if = "is_zero")]
     pub tendon_pivot: f32,
+    /// Whether the rest lengths of a muscle whose held shape follows its
+    /// line ([`HoldFrame::Line`]) follow that held shape: each Fiber,
+    /// Branch and Internal constraint's rest length becomes its length in
+    /// the held shape, shortened by the activation where the activation
+    /// shortens it (along the fibres: the muscle pulls taut between its
+    /// tendons) and, where the activation lengthens it (across them),
+    /// swollen by the volume gain alone — the held line, not the muscle,
+    /// sets the muscle's length, so the bulge that keeps the volume at a
+    /// shortened length would wrinkle it. Without it the rest lengths are
+    /// the rest shape's and the stretch the line imposes piles up at the
+    /// held rings (T5's triceps ×1.87; with it ×1.54). Default: `false`.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub rest_follows_hold: bool,
 }
 
 /// What carries a held shape ([`MuscleParams::hold_shape`]) as the bones
@@ -258,6 +271,7 @@ impl Default for MuscleParams {
             hold_frame: HoldFrame::Bones,
             hold_bend: 0.0,
             tendon_pivot: 0.0,
+            rest_follows_hold: false,
         }
     }
 }

@@ -1,0 +1,115 @@
+//! Rest lengths that follow the held shape
+//! ([`super::MuscleParams::rest_follows_hold`]).
+//!
+//! ```text
+//! g_i       particle i's held-shape goal (HoldLine::goal_of its rest position)
+//! r₀        a Fiber, Branch or Internal constraint's rest length in the rest shape
+//! ℓ         its rest length from the activation (DistanceBatch::own_rest), f = ℓ / r₀
+//! q         |g_a − g_b| / r₀: how the held shape stretches it
+//! λ         the activation's shortening along the fibres
+//! rest      r₀ q f        where f < 1 (the activation shortens it: along the fibres)
+//!           r₀ q f √λ     where f ≥ 1 (it lengthens it: across them)
+//! ```
+//!
+//! Across the fibres the activation's bulge `β = √(G/λ)` keeps the volume
+//! gain `G` of a muscle free to shorten to `λ`; held between its bones it
+//! keeps the held line's length, so the section that keeps `G` is `√G`
+//! wider: `β √λ`. Along them `λ` shortens the held length, which pulls the
+//! muscle taut between its tendons.
+
+use super::{LinePose, Muscle};
+use crate::constraints::{ActivationScale, DistanceBatch};
+
+impl Muscle {
+    /// Sets the Fiber, Branch and Internal rest lengths from the held
+    /// shape in the pose `line` when [`super::MuscleParams::rest_follows_hold`]
+    /// asks, and gives them back their activation's lengths when it no
+    /// longer does.
+    pub(crate) fn follow_held_rest(&mut self, line: &LinePose) {
+        let follows = self.params.rest_follows_hold;
+        let c = &mut self.constraints;
+        let batches = [&mut c.fiber, &mut c.branch, &mut c.internal];
+        if !follows {
+            for batch in batches {
+                if !batch.own_rest.is_empty() {
+                    batch.rest.copy_from_slice(&batch.own_rest);
+                    batch.own_rest.clear();
+                }
+            }
+            return;
+        }
+        let Some(hold) = &self.hold_line else {
+            return;
+        };
+        self.held_goals.clear();
+        self.held_goals
+            .extend(self.rest.iter().map(|&r| hold.goal_of(line, r)));
+        let p = &self.params;
+        let a0 = p.rest_activation.min(0.95);
+        let lambda = ActivationScale::new(p.activation, a0, p.max_contraction, None).shortening;
+        let across = lambda.max(0.0).sqrt();
+        for batch in batches {
+            follow(batch, &self.rest, &self.held_goals, across);
+        }
+    }
+}
+
+/// One batch's rest lengths from the goals `goals` (see the module docs;
+/// `across` is `√λ`).
+fn follow(batch: &mut DistanceBatch, rest: &[glam::Vec3], goals: &[glam::Vec3], across: f32) {
+    if batch.own_rest.len() != batch.rest.len() {
+        batch.own_rest.clone_from(&batch.rest);
+    }
+    for k in 0..batch.rest.len() {
+        let (a, b) = (batch.a[k].index(), batch.b[k].index());
+        let r0 = rest[a].distance(rest[b]);
+        if r0 <= 0.0 {
+            continue;
+        }
+        let q = goals[a].distance(goals[b]) / r0;
+        let own = batch.own_rest[k];
+        let f = own / r0;
+        batch.rest[k] = if f < 1.0 { own * q } else { own * q * across };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::Scene;
+    use std::path::Path;
+
+    /// T5 at its first flexion's peak: with its rest lengths following the
+    /// held shape, a triceps' edges take the line's stretch along their
+    /// length (each Fiber rest length is its length in the goals), and
+    /// switching it off gives every batch its activation's lengths back.
+    #[test]
+    fn rest_lengths_follow_the_held_shape_and_come_back_when_let_go() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+        let mut scene = Scene::load(&path).unwrap();
+        for m in &mut scene.muscles {
+            m.params.rest_follows_hold = true;
+        }
+        let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
+        for _ in 0..150 {
+            solver.step();
+        }
+        let i = solver.muscle_index("TRIlong").unwrap();
+        let m = &solver.muscles()[i];
+        let fiber = &m.constraints.fiber;
+        assert_eq!(fiber.own_rest.len(), fiber.rest.len());
+        // The triceps are stretched over the flexed elbow: their rest
+        // lengths, on average, too (the activation is low).
+        let (now, own): (f32, f32) = (fiber.rest.iter().sum(), fiber.own_rest.iter().sum());
+        assert!(now > 1.05 * own, "{now} vs {own}");
+        let mut m = m.clone();
+        m.params.rest_follows_hold = false;
+        let line = m.hold_line.as_ref().unwrap().pose(
+            &|b| solver.bones()[b].transform,
+            super::super::LineShape::of(&m.params),
+        );
+        m.follow_held_rest(&line);
+        assert!(m.constraints.fiber.own_rest.is_empty());
+        let back: f32 = m.constraints.fiber.rest.iter().sum();
+        assert_eq!(back, own);
+    }
+}
