@@ -244,11 +244,12 @@ pub(crate) fn update_bind_goals_in(
 ) {
     let goals = m.constraints.bind.goal.iter_mut().zip(&m.binding);
     match m.hold_line.as_ref().zip(line) {
+        Some(_) if m.params.rest_follows_hold => m.follow_held_shape(line.expect("zipped")),
         Some((line, now)) => {
             for (goal, b) in goals {
                 *goal = line.goal(now, b.vertex.index());
             }
-            m.follow_held_rest(now);
+            m.release_held_rest();
         }
         None => {
             for (goal, b) in goals {

@@ -21,35 +21,38 @@ use super::{LinePose, Muscle};
 use crate::constraints::{ActivationScale, DistanceBatch};
 
 impl Muscle {
-    /// Sets the Fiber, Branch and Internal rest lengths from the held
-    /// shape in the pose `line` when [`super::MuscleParams::rest_follows_hold`]
-    /// asks, and gives them back their activation's lengths when it no
-    /// longer does.
-    pub(crate) fn follow_held_rest(&mut self, line: &LinePose) {
-        let follows = self.params.rest_follows_hold;
-        let c = &mut self.constraints;
-        let batches = [&mut c.fiber, &mut c.branch, &mut c.internal];
-        if !follows {
-            for batch in batches {
-                if !batch.own_rest.is_empty() {
-                    batch.rest.copy_from_slice(&batch.own_rest);
-                    batch.own_rest.clear();
-                }
-            }
-            return;
-        }
+    /// For a muscle whose rest lengths follow its held shape: every
+    /// particle's goal in the pose `line` (the Bind goals among them) and
+    /// the Fiber, Branch and Internal rest lengths from them.
+    pub(crate) fn follow_held_shape(&mut self, line: &LinePose) {
         let Some(hold) = &self.hold_line else {
             return;
         };
         self.held_goals.clear();
         self.held_goals
             .extend(self.rest.iter().map(|&r| hold.goal_of(line, r)));
+        let c = &mut self.constraints;
+        for (goal, b) in c.bind.goal.iter_mut().zip(&self.binding) {
+            *goal = self.held_goals[b.vertex.index()];
+        }
         let p = &self.params;
         let a0 = p.rest_activation.min(0.95);
         let lambda = ActivationScale::new(p.activation, a0, p.max_contraction, None).shortening;
         let across = lambda.max(0.0).sqrt();
-        for batch in batches {
+        for batch in [&mut c.fiber, &mut c.branch, &mut c.internal] {
             follow(batch, &self.rest, &self.held_goals, across);
+        }
+    }
+
+    /// Gives the Fiber, Branch and Internal batches their activation's
+    /// rest lengths back once they no longer follow the held shape.
+    pub(crate) fn release_held_rest(&mut self) {
+        let c = &mut self.constraints;
+        for batch in [&mut c.fiber, &mut c.branch, &mut c.internal] {
+            if !batch.own_rest.is_empty() {
+                batch.rest.copy_from_slice(&batch.own_rest);
+                batch.own_rest.clear();
+            }
         }
     }
 }
@@ -103,11 +106,7 @@ mod tests {
         assert!(now > 1.05 * own, "{now} vs {own}");
         let mut m = m.clone();
         m.params.rest_follows_hold = false;
-        let line = m.hold_line.as_ref().unwrap().pose(
-            &|b| solver.bones()[b].transform,
-            super::super::LineShape::of(&m.params),
-        );
-        m.follow_held_rest(&line);
+        m.release_held_rest();
         assert!(m.constraints.fiber.own_rest.is_empty());
         let back: f32 = m.constraints.fiber.rest.iter().sum();
         assert_eq!(back, own);
