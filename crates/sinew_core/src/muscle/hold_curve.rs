@@ -14,8 +14,9 @@
 //! σ         arc length of c over L₀ (the stretch along)
 //! goal(u)   for a rest offset u = r − O₀ with along = a₀·u, t = along/L₀:
 //!           c at arc fraction t + Q there · (u − along a₀) · across(t),
-//!           across(t) = 1 + (1/√σ − 1) ramp(t): thinned as the line
-//!           stretches, but not at the held rings (ramp 0 at the ends,
+//!           across(t) = 1 + (w/√σ − 1) ramp(t): thinned as the line
+//!           stretches (and swollen by w, LineShape::swell), but not at
+//!           the held rings (ramp 0 at the ends,
 //!           1 beyond END_ZONE of the length from them); beyond the ends
 //!           the offset is carried rigidly by the end's frame
 //! ```
@@ -26,6 +27,7 @@
 //! the triceps' necks folded, edges ×2.4). The curve spreads that turn
 //! over the belly.
 
+use super::LineShape;
 use glam::{Quat, Vec3};
 
 /// Samples along the curve (the goal interpolates between them).
@@ -51,23 +53,26 @@ pub struct BentLine {
     samples: [Sample; SAMPLES + 1],
     /// `σ`.
     stretch: f32,
+    /// [`LineShape::swell`].
+    swell: f32,
 }
 
 impl BentLine {
     /// The curve from `o` to `i` leaving them along `frames[e] · axis`
-    /// (`axis` the rest axis `a₀`), end tangents `bend` chord lengths long;
-    /// `rest_length` is `L₀`, `max_stretch` bounds `σ` both ways.
+    /// (`axis` the rest axis `a₀`), end tangents `shape.bend` chord
+    /// lengths long, the belly swollen by `shape.swell`; `rest_length` is
+    /// `L₀`, `max_stretch` bounds `σ` both ways.
     pub fn new(
         o: Vec3,
         i: Vec3,
         frames: [Quat; 2],
         axis: Vec3,
         rest_length: f32,
-        bend: f32,
+        shape: LineShape,
         max_stretch: f32,
     ) -> Self {
         let chord = o.distance(i);
-        let [t0, t1] = frames.map(|f| f * axis * (bend * chord));
+        let [t0, t1] = frames.map(|f| f * axis * (shape.bend * chord));
         let point = |t: f32| {
             let (t2, t3) = (t * t, t * t * t);
             o * (2.0 * t3 - 3.0 * t2 + 1.0)
@@ -131,7 +136,11 @@ impl BentLine {
         } else {
             1.0
         };
-        Self { samples, stretch }
+        Self {
+            samples,
+            stretch,
+            swell: shape.swell,
+        }
     }
 
     /// The goal of a rest offset `u` from the line's rest origin (`axis`
@@ -148,7 +157,7 @@ impl BentLine {
         }
         let t = along / rest_length;
         let ramp = smoothstep(t.min(1.0 - t) / END_ZONE);
-        let scale = 1.0 + (self.stretch.sqrt().recip() - 1.0) * ramp;
+        let scale = 1.0 + (self.swell / self.stretch.sqrt() - 1.0) * ramp;
         let k = self
             .samples
             .partition_point(|s| s.arc < t)
@@ -179,6 +188,11 @@ mod tests {
     use super::*;
 
     const AXIS: Vec3 = Vec3::X;
+    const BENT: LineShape = LineShape {
+        bend: 1.0,
+        pivot: 0.0,
+        swell: 1.0,
+    };
 
     #[test]
     fn unturned_ends_give_the_straight_rest_line() {
@@ -188,7 +202,7 @@ mod tests {
             [Quat::IDENTITY; 2],
             AXIS,
             1.0,
-            1.0,
+            BENT,
             4.0,
         );
         for u in [
@@ -207,7 +221,7 @@ mod tests {
         // its rest axis now points along +Y.
         let turn = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
         let i = Vec3::new(0.7, 0.7, 0.0);
-        let line = BentLine::new(Vec3::ZERO, i, [Quat::IDENTITY, turn], AXIS, 1.0, 1.0, 4.0);
+        let line = BentLine::new(Vec3::ZERO, i, [Quat::IDENTITY, turn], AXIS, 1.0, BENT, 4.0);
         // Near the first end the line runs along +X, near the far end along +Y.
         let near_o = line.goal(AXIS, 1.0, Vec3::new(0.01, 0.0, 0.0));
         assert!(near_o.y.abs() < 1e-3 && near_o.x > 0.0, "{near_o}");
@@ -241,7 +255,7 @@ mod tests {
             [Quat::IDENTITY, twist],
             AXIS,
             1.0,
-            1.0,
+            BENT,
             4.0,
         );
         let side = line.goal(AXIS, 1.0, Vec3::new(0.5, 0.1, 0.0)) - Vec3::new(0.5, 0.0, 0.0);

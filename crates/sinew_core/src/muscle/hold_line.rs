@@ -69,21 +69,45 @@ struct LineEnd {
 
 /// How a held line is shaped: [`MuscleParams::hold_bend`] and
 /// [`MuscleParams::tendon_pivot`] (read every substep, so a live edit
-/// takes effect at once).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// takes effect at once). The default is the straight, unturned,
+/// unswollen line.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineShape {
     /// Tangent length at the ends, in chord lengths (0: straight).
     pub bend: f32,
     /// Share of the turn onto the line each end group takes about its tip.
     pub pivot: f32,
+    /// How much wider the held shape is across the line than the rest
+    /// shape's stretch gives: `√` of the volume ratio at the muscle's
+    /// activation when its rest lengths follow the held shape
+    /// ([`MuscleParams::rest_follows_hold`]; its Volume constraint then
+    /// asks the held shape's volume), 1 otherwise.
+    pub swell: f32,
+}
+
+impl Default for LineShape {
+    fn default() -> Self {
+        Self {
+            bend: 0.0,
+            pivot: 0.0,
+            swell: 1.0,
+        }
+    }
 }
 
 impl LineShape {
     /// The shape `params` ask for.
     pub fn of(params: &MuscleParams) -> Self {
+        let swell = if params.rest_follows_hold && params.volume.enabled {
+            let a0 = params.rest_activation.min(0.95);
+            params.volume.ratio(params.activation, a0).max(0.0).sqrt()
+        } else {
+            1.0
+        };
         Self {
             bend: params.hold_bend,
             pivot: params.tendon_pivot,
+            swell,
         }
     }
 }
@@ -210,22 +234,13 @@ impl HoldLine {
         let stretch = (length / self.length).clamp(1.0 / MAX_STRETCH, MAX_STRETCH);
         let rotations =
             frames.map(|r| (Quat::from_rotation_arc(r * self.axis, axis) * r).normalize());
-        let curve = (shape.bend > 0.0).then(|| {
-            BentLine::new(
-                o,
-                i,
-                frames,
-                self.axis,
-                self.length,
-                shape.bend,
-                MAX_STRETCH,
-            )
-        });
+        let curve = (shape.bend > 0.0)
+            .then(|| BentLine::new(o, i, frames, self.axis, self.length, shape, MAX_STRETCH));
         LinePose {
             origin: o,
             rotations,
             along: stretch,
-            across: stretch.sqrt().recip(),
+            across: stretch.sqrt().recip() * shape.swell,
             turns,
             curve,
         }
@@ -423,8 +438,8 @@ mod tests {
                 .collect()
         };
         let shape = LineShape {
-            bend: 0.0,
             pivot: 0.5,
+            ..LineShape::default()
         };
         // At rest nothing turns.
         let rest = |_: usize| Affine3A::IDENTITY;
@@ -454,6 +469,23 @@ mod tests {
         let turned = before.angle_between(after);
         assert!((turned - full / 2.0).abs() < 1e-4, "{turned} vs {full}");
         assert!(after.normalize().dot(chord) > before.normalize().dot(chord));
+    }
+
+    #[test]
+    fn a_held_shape_swells_with_the_volume_gain_only_when_the_rest_lengths_follow_it() {
+        let mut params = MuscleParams::default();
+        params.volume.activation_gain = 1.21;
+        params.activation = 1.0;
+        assert_eq!(LineShape::of(&params).swell, 1.0);
+        params.rest_follows_hold = true;
+        assert!((LineShape::of(&params).swell - 1.1).abs() < 1e-6);
+        // The straight line's section widens by it.
+        let (positions, held) = bar();
+        let line = HoldLine::new(&positions, &held, &|_| Affine3A::IDENTITY).unwrap();
+        let shape = LineShape::of(&params);
+        let pose = line.pose(&|_| Affine3A::IDENTITY, shape);
+        let g = line.goal(&pose, 2);
+        assert!((g.y - 0.2 * 1.1).abs() < 1e-5, "{g}");
     }
 
     #[test]

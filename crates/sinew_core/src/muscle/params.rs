@@ -189,9 +189,11 @@ pub struct MuscleParams {
     /// tendons) and, where the activation lengthens it (across them),
     /// swollen by the volume gain alone — the held line, not the muscle,
     /// sets the muscle's length, so the bulge that keeps the volume at a
-    /// shortened length would wrinkle it. Without it the rest lengths are
-    /// the rest shape's and the stretch the line imposes piles up at the
-    /// held rings (T5's triceps ×1.87; with it ×1.54). Default: `false`.
+    /// shortened length would wrinkle it. The held shape itself then
+    /// swells with the volume gain, as the Volume constraint asks
+    /// ([`crate::muscle::LineShape::swell`]). Without it the rest lengths
+    /// are the rest shape's and the stretch the line imposes piles up at
+    /// the held rings (T5's triceps ×1.87; with it ×1.54). Default: `false`.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub rest_follows_hold: bool,
 }
