@@ -15,6 +15,7 @@ mod held_rest;
 mod hold_curve;
 mod hold_line;
 mod internal;
+mod line_shape;
 mod mass;
 mod params;
 mod tuning;
@@ -28,8 +29,9 @@ pub use constraints::{Compliances, ConstraintCounts, ConstraintKind, MuscleConst
 pub(crate) use desc::held_by;
 pub use desc::{AttachmentDesc, MuscleDesc, Roots, TargetRef, VertexMaps};
 pub use fiber::{fiber_field, longest_axis};
-pub use hold_line::{HoldLine, LinePose, LineShape};
+pub use hold_line::{HoldLine, LinePose};
 pub use internal::{InternalStructure, InternalStructureParams};
+pub use line_shape::LineShape;
 pub use params::{ConnectionWeights, HoldFrame, MAX_FIBER_SMOOTHING, MassMode, MuscleParams};
 
 use crate::constraints::{ActivationScale, ParticleId, TargetSlot};
