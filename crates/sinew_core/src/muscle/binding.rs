@@ -242,9 +242,12 @@ pub(crate) fn update_bind_goals_in(
     pose: &impl Fn(usize) -> Affine3A,
     line: Option<&LinePose>,
 ) {
+    if let Some(now) = line.filter(|_| m.hold_line.is_some() && m.params.rest_follows_hold) {
+        m.follow_held_shape(now);
+        return;
+    }
     let goals = m.constraints.bind.goal.iter_mut().zip(&m.binding);
     match m.hold_line.as_ref().zip(line) {
-        Some(_) if m.params.rest_follows_hold => m.follow_held_shape(line.expect("zipped")),
         Some((line, now)) => {
             for (goal, b) in goals {
                 *goal = line.goal(now, b.vertex.index());
