@@ -267,12 +267,13 @@ pub(super) fn for_frame(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// A bar of vertices along X from a point held on bone 0 to one held
-    /// on bone 1, with a vertex off the axis.
-    fn bar() -> (Vec<Vec3>, Vec<(Option<usize>, u32)>) {
+    /// on bone 1, with a vertex off the axis (`line_shape`'s tests use it
+    /// too).
+    pub(in crate::muscle) fn bar() -> (Vec<Vec3>, Vec<(Option<usize>, u32)>) {
         let positions = vec![
             Vec3::new(0.0, 0.0, 0.0),
             Vec3::new(1.0, 0.0, 0.0),

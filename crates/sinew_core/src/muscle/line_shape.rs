@@ -96,19 +96,8 @@ impl HoldLine {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::muscle::hold_line::tests::bar;
     use glam::Affine3A;
-
-    /// A bar of vertices along X from a point held on bone 0 to one held
-    /// on bone 1, with a vertex off the axis (as `hold_line`'s tests).
-    fn bar() -> (Vec<Vec3>, Vec<(Option<usize>, u32)>) {
-        let positions = vec![
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.5, 0.2, 0.0),
-            Vec3::new(0.25, 0.0, 0.1),
-        ];
-        (positions, vec![(Some(0), 0), (Some(1), 1)])
-    }
 
     #[test]
     fn a_pivoting_tendon_turns_its_group_about_the_tip_towards_the_line() {
