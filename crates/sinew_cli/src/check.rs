@@ -250,7 +250,7 @@ fn muscle_tables(
 ) -> Result<()> {
     writeln!(
         out,
-        "{:<12}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}{:>14}{:>10}",
+        "{:<12}{:>9}{:>9}{:>9}{:>11}{:>10}{:>12}{:>11}{:>14}{:>10}{:>9}",
         "muscle",
         "vol min",
         "vol max",
@@ -260,7 +260,8 @@ fn muscle_tables(
         "attach mm",
         "inside %",
         "span×",
-        "forced×"
+        "forced×",
+        "crossed"
     )?;
     for (i, m) in solver.muscles().iter().enumerate() {
         let (lo, hi) = metrics.volume_ratio[i];
@@ -270,7 +271,7 @@ fn muscle_tables(
         let forced = metrics.forced_strain_max[i].map_or("-".to_string(), |s| format!("{s:.2}"));
         writeln!(
             out,
-            "{:<12}{:>9.3}{:>9.3}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}{:>14}{:>10}",
+            "{:<12}{:>9.3}{:>9.3}{:>9.2}{:>11.3}{:>10.2}{:>12.2}{:>11.2}{:>14}{:>10}{:>9}",
             m.name,
             lo,
             hi,
@@ -280,7 +281,8 @@ fn muscle_tables(
             metrics.muscle_attachment_max[i] * 1e3,
             metrics.muscle_penetration_max[i] * 100.0,
             span,
-            forced
+            forced,
+            m.mesh.self_crossings(&m.rest)
         )?;
     }
     writeln!(
@@ -309,7 +311,7 @@ fn muscle_tables(
     }
     writeln!(
         out,
-        "(span: distance between the muscle's two farthest attachment groups over its rest value, extremes over the run: the mean strain along a straight line between them; forced: the largest, over the run, of an attached pair's distance over its shortest rest path along the mesh's edges (pairs on different bones): the largest edge strain is at least this, whatever the solver does; strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
+        "(span: distance between the muscle's two farthest attachment groups over its rest value, extremes over the run: the mean strain along a straight line between them; forced: the largest, over the run, of an attached pair's distance over its shortest rest path along the mesh's edges (pairs on different bones): the largest edge strain is at least this, whatever the solver does; crossed: pairs of the rest surface's triangles that pass through each other (a surface crumpled into itself at rest: its strain is measured against edges that must stretch many times over to straighten); strain: edge length / rest length, extremes over the run; v, KE and jiggle: the last second, in the first attached bone's frame; dev: distance from the rest shape now)"
     )?;
     Ok(())
 }

@@ -7,6 +7,7 @@
 //! [`SurfaceMesh::triangulated`] turns every polygon into triangles when a user
 //! wants diagonal edges to carry fibres as well.
 
+mod crossing;
 pub(crate) mod load;
 pub mod primitives;
 mod validate;
