@@ -295,3 +295,112 @@ fn bone_slivers_are_dropped_not_fatal() {
     imported.scene.instantiate(&dir).unwrap();
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A muscle from `s0` to `s1` whose tendon wraps a 20 mm sphere half-way,
+/// on the side of a side site at +X (the straight path runs through the
+/// sphere's centre).
+fn wrapped(geom: &str, wrap: &str) -> String {
+    let body = BODY.replace(
+        "<site name=\"s1\"",
+        &format!("{geom}<site name=\"side\" pos=\"0.08 0 -0.1\"/><site name=\"s1\""),
+    );
+    let tendon = format!(
+        "<tendon><spatial name=\"t\"><site site=\"s0\"/>{wrap}<site site=\"s1\"/></spatial></tendon>\n\
+         <actuator><muscle name=\"m\" tendon=\"t\" force=\"100\"/></actuator>"
+    );
+    with(&body, &tendon)
+}
+
+const BALL: &str = r#"<geom name="ball" size="0.02" pos="0.03 0 -0.1"/>"#;
+
+#[test]
+fn a_tendon_wraps_around_its_geom_on_the_side_of_its_side_site() {
+    let dir = scratch("wrap");
+    let path = model(
+        &dir,
+        "wrap.xml",
+        &wrapped(BALL, r#"<geom geom="ball" sidesite="side"/>"#),
+    );
+    let m = MjcfModel::load(&path).unwrap();
+    assert_eq!(m.wrap_geoms.len(), 1);
+    assert_eq!(m.tendons[0].wraps.len(), 1);
+    assert_eq!(m.tendons[0].wraps[0].after, 1);
+    // The ball's centre in the scene (Y-up); the muscle's centre line is
+    // its internal points (one per ring).
+    let ball = z_up_to_y_up() * Vec3::new(0.03, 0.0, 0.9);
+    let side = z_up_to_y_up() * Vec3::X;
+    let centre_line = |wrap_paths: bool| {
+        let options = ImportOptions {
+            wrap_paths,
+            ..Default::default()
+        };
+        let imported = import_model(&m, &options, &dir, Path::new("out")).unwrap();
+        let solver = imported.scene.instantiate(&dir).unwrap();
+        let muscle = &solver.muscles()[0];
+        (muscle.internal_positions().to_vec(), imported.notes)
+    };
+    let (wrapped, notes) = centre_line(true);
+    let nearest = wrapped
+        .iter()
+        .map(|p| p.distance(ball))
+        .fold(f32::INFINITY, f32::min);
+    assert!(
+        nearest > 0.019,
+        "the centre line comes {nearest} m from the ball's centre"
+    );
+    assert!(wrapped.iter().all(|p| (*p - ball).dot(side) > -1e-3));
+    assert!(!notes.iter().any(|n| n.contains("ignored")), "{notes:?}");
+    let (straight, notes) = centre_line(false);
+    let nearest = straight
+        .iter()
+        .map(|p| p.distance(ball))
+        .fold(f32::INFINITY, f32::min);
+    assert!(
+        nearest < 0.01,
+        "the straight path passes {nearest} m from the centre"
+    );
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.contains("1 wrapping geom(s) ignored")),
+        "{notes:?}"
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn a_wrap_around_a_missing_or_sizeless_geom_is_an_error() {
+    let dir = scratch("wrap_bad");
+    let options = ImportOptions {
+        wrap_paths: true,
+        ..Default::default()
+    };
+    let wrap = r#"<geom geom="ball" sidesite="side"/>"#;
+    for (name, geom, needles) in [
+        (
+            "missing.xml",
+            "",
+            &["tendon 't'", "geom 'ball'", "does not exist"][..],
+        ),
+        (
+            "sizeless.xml",
+            r#"<geom name="ball" pos="0.03 0 -0.1"/>"#,
+            &["tendon 't'", "geom 'ball'", "positive"][..],
+        ),
+    ] {
+        let path = model(&dir, name, &wrapped(geom, wrap));
+        let m = MjcfModel::load(&path).unwrap();
+        expect_err(import_model(&m, &options, &dir, Path::new("out")), needles);
+    }
+    let path = model(
+        &dir,
+        "noside.xml",
+        &wrapped(BALL, r#"<geom geom="ball" sidesite="nowhere"/>"#),
+    );
+    let m = MjcfModel::load(&path).unwrap();
+    expect_err(
+        import_model(&m, &options, &dir, Path::new("out")),
+        &["tendon 't'", "site 'nowhere'"],
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -30,7 +30,7 @@ pub struct Origin {
 }
 
 impl Origin {
-    fn error(&self, element: &str, reason: impl Into<String>) -> ImportError {
+    pub(crate) fn error(&self, element: &str, reason: impl Into<String>) -> ImportError {
         ImportError::Model {
             file: self.file.to_path_buf(),
             line: self.line,
@@ -105,10 +105,55 @@ pub struct MjTendon {
     /// resolved by [`MjcfModel::tendon_sites`], after composition, because a
     /// fragment's tendons may run through sites of the model it attaches to.
     pub sites: Vec<(String, Origin)>,
-    /// Wrapping geoms skipped (the path goes straight through their sites).
-    pub skipped_wraps: usize,
+    /// The wrapping geoms along the path, each between two of `sites`.
+    pub wraps: Vec<TendonWrap>,
     /// Where it was read.
     pub origin: Origin,
+}
+
+/// A wrapping geom on a tendon's path (`<spatial><geom geom sidesite>`).
+#[derive(Clone, Debug)]
+pub struct TendonWrap {
+    /// How many of the tendon's sites come before it: it lies between
+    /// sites `after − 1` and `after`.
+    pub after: usize,
+    /// The geom's name (a [`MjWrapGeom`]).
+    pub geom: String,
+    /// The site that picks the side the path wraps on, if named.
+    pub sidesite: Option<String>,
+    /// Where it was named.
+    pub origin: Origin,
+}
+
+/// A sphere or cylinder geom: an obstacle a tendon's path may wrap around.
+#[derive(Clone, Debug)]
+pub struct MjWrapGeom {
+    /// Name.
+    pub name: String,
+    /// Body index; `None` = the world.
+    pub body: Option<usize>,
+    /// Its shape.
+    pub shape: WrapShape,
+    /// Position in the body frame. Units: m.
+    pub pos: Vec3,
+    /// Orientation in the body frame (a cylinder's axis is its local Z).
+    pub quat: Quat,
+}
+
+/// The shape of a [`MjWrapGeom`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum WrapShape {
+    /// A sphere of this radius (m).
+    Sphere {
+        /// Radius. Units: m.
+        radius: f32,
+    },
+    /// An infinite cylinder of this radius (m) about the local Z axis (a
+    /// path wraps it as MuJoCo does, whatever its length).
+    Cylinder {
+        /// Radius. Units: m.
+        radius: f32,
+    },
 }
 
 /// An actuator acting on a tendon.
@@ -135,6 +180,8 @@ pub struct MjcfModel {
     pub meshes: Vec<MjMesh>,
     /// Mesh geoms.
     pub geoms: Vec<MjGeom>,
+    /// Named sphere and cylinder geoms (what tendons wrap around).
+    pub wrap_geoms: Vec<MjWrapGeom>,
     /// Spatial tendons.
     pub tendons: Vec<MjTendon>,
     /// Tendon actuators.
@@ -449,6 +496,11 @@ impl MjcfModel {
             .collect()
     }
 
+    /// A wrapping geom by name.
+    pub fn wrap_geom(&self, name: &str) -> Option<&MjWrapGeom> {
+        self.wrap_geoms.iter().find(|g| g.name == name)
+    }
+
     /// A mesh asset by name.
     pub fn mesh(&self, name: &str) -> Option<&MjMesh> {
         self.meshes.iter().find(|m| m.name == name)
@@ -503,6 +555,11 @@ impl MjcfModel {
             g.body = reparent(g.body);
             g
         }));
+        self.wrap_geoms
+            .extend(child.wrap_geoms.into_iter().map(|mut g| {
+                g.body = reparent(g.body);
+                g
+            }));
         for m in child.meshes {
             if self.mesh(&m.name).is_none() {
                 self.meshes.push(m);
@@ -560,6 +617,9 @@ impl MjcfModel {
             place(&mut g.name, &mut g.pos, &mut g.quat);
             g.mesh = left_name(&g.mesh);
         }
+        for g in &mut m.wrap_geoms {
+            place(&mut g.name, &mut g.pos, &mut g.quat);
+        }
         for mesh in &mut m.meshes {
             mesh.name = left_name(&mesh.name);
             mesh.scale.z = -mesh.scale.z;
@@ -568,6 +628,10 @@ impl MjcfModel {
             t.name = left_name(&t.name);
             for (site, _) in &mut t.sites {
                 *site = left_name(site);
+            }
+            for w in &mut t.wraps {
+                w.geom = left_name(&w.geom);
+                w.sidesite = w.sidesite.as_deref().map(left_name);
             }
         }
         for a in &mut m.actuators {

@@ -15,6 +15,7 @@ pub mod builder;
 pub mod mjcf;
 mod options;
 mod recipe;
+mod wrap;
 
 pub use options::{BoneMeshes, ImportOptions, TargetOverride, UserMuscleMesh};
 pub use recipe::{AttachModel, ImportRecipe, MuscleDrive};
@@ -215,17 +216,13 @@ pub fn import_model(
     let mut built: Vec<BuiltMuscle> = Vec::with_capacity(chosen.len());
     for &a in &chosen {
         let actuator = &model.actuators[a];
-        let tendon = &model.tendons[actuator.tendon];
         let sites = model.tendon_sites(actuator.tendon)?;
-        let points: Vec<Vec3> = sites
-            .iter()
-            .map(|s| frame_of(s.body).transform_point3(s.pos))
-            .collect();
-        if tendon.skipped_wraps > 0 {
+        let (points, wraps) =
+            wrap::tendon_path(model, actuator.tendon, &frame_of, options.wrap_paths)?;
+        if wraps > 0 && !options.wrap_paths {
             notes.push(format!(
-                "{}: {} wrapping geom(s) ignored; the path runs through its {} sites",
+                "{}: {wraps} wrapping geom(s) ignored (wrap_paths is off); the path runs through its {} sites",
                 actuator.name,
-                tendon.skipped_wraps,
                 sites.len()
             ));
         }
@@ -276,6 +273,12 @@ pub fn import_model(
                 positions,
                 &m.mesh.polygons().map(<[u32]>::to_vec).collect::<Vec<_>>(),
             )?;
+        }
+        let crossed = m.mesh.self_crossings(&m.mesh.positions);
+        if crossed > 0 {
+            notes.push(format!(
+                "{name}: its surface crosses itself at rest ({crossed} triangle pairs): its edges' rest lengths are a crumpled surface's (a thinner belly, `radii`, crosses less)"
+            ));
         }
         built.push(m);
     }

@@ -61,6 +61,11 @@ pub struct ImportOptions {
     pub bone_meshes: BoneMeshes,
     /// Convert MuJoCo's Z-up to Y-up (Bevy). Default: true.
     pub y_up: bool,
+    /// Run each tendon's path around its wrapping geoms (spheres and
+    /// cylinders, on the side of their side sites) at the reference pose,
+    /// as MuJoCo does, instead of straight through its sites. Default:
+    /// false.
+    pub wrap_paths: bool,
     /// Parameters of every muscle.
     pub params: MuscleParams,
 }
@@ -78,6 +83,7 @@ impl Default for ImportOptions {
             neighbour_distance: 0.02,
             targets: Vec::new(),
             push_out_margin: 0.001,
+            wrap_paths: false,
             bone_meshes: BoneMeshes::Used,
             y_up: true,
             params: MuscleParams::default(),

@@ -198,6 +198,17 @@ impl<'a> Reader<'a> {
     fn geom(&mut self, e: &Element, body: Option<usize>, class: &str) -> Result<(), ImportError> {
         let attrs = self.attr(e, class);
         let get = |n: &str| attrs.get(n);
+        if let Some(shape) = self.wrap_shape(e, &attrs)? {
+            let (pos, quat) = self.frame(e, &attrs)?;
+            self.model.wrap_geoms.push(MjWrapGeom {
+                name: get("name").unwrap_or_default().to_string(),
+                body,
+                shape,
+                pos,
+                quat,
+            });
+            return Ok(());
+        }
         let Some(mesh) = get("mesh") else {
             return Ok(());
         };
@@ -213,6 +224,34 @@ impl<'a> Reader<'a> {
             quat,
         });
         Ok(())
+    }
+
+    /// A named sphere (MJCF's default type) or cylinder geom's shape: what
+    /// a tendon can wrap around (radius 0 where it has no size). `None`
+    /// for any other geom.
+    fn wrap_shape(&self, e: &Element, attrs: &Attrs) -> Result<Option<WrapShape>, ImportError> {
+        let get = |n: &str| attrs.get(n);
+        if get("name").is_none_or(str::is_empty) || get("mesh").is_some() {
+            return Ok(None);
+        }
+        let kind = get("type").unwrap_or("sphere");
+        if kind != "sphere" && kind != "cylinder" {
+            return Ok(None);
+        }
+        // Checked where a tendon wraps it (a geom no tendon names may do
+        // without).
+        let radius = match get("size") {
+            Some(text) => floats(&e.origin, &e.tag, "size", text)?
+                .first()
+                .copied()
+                .unwrap_or(0.0),
+            None => 0.0,
+        };
+        Ok(Some(if kind == "sphere" {
+            WrapShape::Sphere { radius }
+        } else {
+            WrapShape::Cylinder { radius }
+        }))
     }
 
     fn site(&mut self, e: &Element, body: Option<usize>, class: &str) -> Result<(), ImportError> {
@@ -266,7 +305,7 @@ impl<'a> Reader<'a> {
     pub(super) fn tendon(&mut self, e: &Element) -> Result<(), ImportError> {
         let name = e.get("name").unwrap_or_default().to_string();
         let mut sites = Vec::new();
-        let mut skipped_wraps = 0;
+        let mut wraps = Vec::new();
         for c in &e.children {
             match c.tag.as_str() {
                 "site" => {
@@ -275,7 +314,17 @@ impl<'a> Reader<'a> {
                         .ok_or_else(|| c.origin.error("site", "missing attribute 'site'"))?;
                     sites.push((site.to_string(), c.origin.clone()));
                 }
-                "geom" => skipped_wraps += 1,
+                "geom" => {
+                    let geom = c
+                        .get("geom")
+                        .ok_or_else(|| c.origin.error("geom", "missing attribute 'geom'"))?;
+                    wraps.push(TendonWrap {
+                        after: sites.len(),
+                        geom: geom.to_string(),
+                        sidesite: c.get("sidesite").map(str::to_string),
+                        origin: c.origin.clone(),
+                    });
+                }
                 "pulley" => {
                     return Err(c.origin.error(
                         "pulley",
@@ -288,7 +337,7 @@ impl<'a> Reader<'a> {
         self.model.tendons.push(MjTendon {
             name,
             sites,
-            skipped_wraps,
+            wraps,
             origin: e.origin.clone(),
         });
         Ok(())
