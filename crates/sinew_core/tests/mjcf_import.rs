@@ -404,3 +404,29 @@ fn a_wrap_around_a_missing_or_sizeless_geom_is_an_error() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn a_mirrored_tendon_wraps_a_geom_both_sides_share() {
+    use sinew_core::import::mjcf::{MjWrapGeom, WrapShape};
+    let thorax = MjWrapGeom {
+        name: "thorax".into(),
+        body: None,
+        shape: WrapShape::Sphere { radius: 0.08 },
+        pos: Vec3::ZERO,
+        quat: sinew_core::glam::Quat::IDENTITY,
+    };
+    let right = MjWrapGeom {
+        name: "ball_r".into(),
+        ..thorax.clone()
+    };
+    let m = MjcfModel {
+        wrap_geoms: vec![thorax, right],
+        ..Default::default()
+    };
+    // The left arm's copy of a tendon names `thorax_l`: the host has one
+    // thorax for both sides.
+    assert_eq!(m.wrap_geom("thorax_l").unwrap().name, "thorax");
+    assert_eq!(m.wrap_geom("thorax").unwrap().name, "thorax");
+    // A right-side geom is never taken for a missing left one.
+    assert!(m.wrap_geom("ball_l").is_none());
+}

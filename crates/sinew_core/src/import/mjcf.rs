@@ -496,9 +496,14 @@ impl MjcfModel {
             .collect()
     }
 
-    /// A wrapping geom by name.
+    /// A wrapping geom by name. A left-side name ([`left_name`]'s `_l`)
+    /// that the model does not hold falls back to the name without it: a
+    /// mirrored tendon may wrap a geom of the model it attaches to that
+    /// serves both sides (myo-sim's thorax ellipsoid for either pectoralis,
+    /// with a side site per side).
     pub fn wrap_geom(&self, name: &str) -> Option<&MjWrapGeom> {
-        self.wrap_geoms.iter().find(|g| g.name == name)
+        let find = |n: &str| self.wrap_geoms.iter().find(|g| g.name == n);
+        find(name).or_else(|| name.strip_suffix("_l").and_then(find))
     }
 
     /// A mesh asset by name.
