@@ -29,6 +29,11 @@ use std::f32::consts::{PI, TAU};
 /// Angle between two samples of a wrapped arc. Units: rad.
 pub const ARC_STEP: f32 = PI / 12.0;
 
+/// Wrap points nearer than this to the point before them or to the next
+/// site are left out of a path: the builder rejects shorter segments.
+/// Units: m.
+pub const SAME_POINT: f32 = super::builder::MIN_SEGMENT;
+
 /// Tendon `t`'s path in the world (bodies at `frame_of`): its sites, and
 /// where `wrap` is set, the points where it wraps each of its wrapping
 /// geoms between them. Also returns how many wrapping geoms the path
@@ -82,12 +87,25 @@ pub(super) fn tendon_path(
                     frame_of(geom.body) * Affine3A::from_rotation_translation(geom.quat, geom.pos);
                 let (_, rotation, centre) = placed.to_scale_rotation_translation();
                 let from = *points.last().expect("a site precedes every wrap");
-                points.extend(wrap_path(from, next, geom.shape, centre, rotation, side));
+                let arc = wrap_path(from, next, geom.shape, centre, rotation, side);
+                push_apart(&mut points, arc, next);
             }
         }
         points.push(next);
     }
     Ok((points, tendon.wraps.len()))
+}
+
+/// Appends the wrap points `arc` to `points` (not empty), leaving out any
+/// within [`SAME_POINT`] of the point before it or of the next site
+/// `next`: a site on (or just off) its geom is its own tangent point.
+fn push_apart(points: &mut Vec<Vec3>, arc: Vec<Vec3>, next: Vec3) {
+    for p in arc {
+        let last = *points.last().expect("a site precedes every wrap");
+        if p.distance(last) > SAME_POINT && p.distance(next) > SAME_POINT {
+            points.push(p);
+        }
+    }
 }
 
 /// The points between `a` and `b` (world) where the path wraps `shape`
@@ -267,6 +285,19 @@ mod tests {
             assert!(p.x >= last_x - 1e-6 && p.x <= b.x, "{p}");
             last_x = p.x;
         }
+    }
+
+    #[test]
+    fn wrap_points_on_a_site_are_left_out() {
+        let (a, b) = (Vec3::ZERO, Vec3::X);
+        let mut points = vec![a];
+        let arc = vec![
+            a + Vec3::splat(1e-6),
+            Vec3::new(0.5, 0.2, 0.0),
+            b - Vec3::splat(1e-6),
+        ];
+        push_apart(&mut points, arc, b);
+        assert_eq!(points, vec![a, Vec3::new(0.5, 0.2, 0.0)]);
     }
 
     #[test]
