@@ -392,6 +392,18 @@ fn a_wrap_around_a_missing_or_sizeless_geom_is_an_error() {
         let m = MjcfModel::load(&path).unwrap();
         expect_err(import_model(&m, &options, &dir, Path::new("out")), needles);
     }
+    // A wrap must lie between two sites (MuJoCo's rule): first or last is
+    // an error when the model is read.
+    let first = wrapped(BALL, "").replace(
+        "<spatial name=\"t\"><site site=\"s0\"/>",
+        "<spatial name=\"t\"><geom geom=\"ball\"/><site site=\"s0\"/>",
+    );
+    assert!(first.contains("<geom geom=\"ball\"/><site site=\"s0\"/>"));
+    let path = model(&dir, "first.xml", &first);
+    expect_err(
+        MjcfModel::load(&path),
+        &["first.xml:", "tendon 't'", "between two sites"],
+    );
     let path = model(
         &dir,
         "noside.xml",

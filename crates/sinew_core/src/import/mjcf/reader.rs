@@ -334,6 +334,19 @@ impl<'a> Reader<'a> {
                 _ => {}
             }
         }
+        // MuJoCo's rule: a wrapping geom lies between two sites.
+        if let Some(w) = wraps
+            .iter()
+            .find(|w| w.after == 0 || w.after == sites.len())
+        {
+            return Err(w.origin.error(
+                "geom",
+                format!(
+                    "tendon '{name}': wrapping geom '{}' must lie between two sites",
+                    w.geom
+                ),
+            ));
+        }
         self.model.tendons.push(MjTendon {
             name,
             sites,
