@@ -216,9 +216,10 @@ pub fn import_model(
     let mut built: Vec<BuiltMuscle> = Vec::with_capacity(chosen.len());
     for &a in &chosen {
         let actuator = &model.actuators[a];
+        let tendon = &model.tendons[actuator.tendon];
         let sites = model.tendon_sites(actuator.tendon)?;
-        let (points, wraps) =
-            wrap::tendon_path(model, actuator.tendon, &frame_of, options.wrap_paths)?;
+        let points = wrap::tendon_path(model, tendon, &sites, &frame_of, options.wrap_paths)?;
+        let wraps = tendon.wraps.len();
         if wraps > 0 && !options.wrap_paths {
             notes.push(format!(
                 "{}: {wraps} wrapping geom(s) ignored (wrap_paths is off); the path runs through its {} sites",

@@ -21,7 +21,7 @@
 //! straight segment (as MuJoCo does). The arc is returned as points every
 //! [`ARC_STEP`] radians, for the muscle builder's spline to run through.
 
-use super::mjcf::{MjcfModel, WrapShape};
+use super::mjcf::{MjSite, MjTendon, MjcfModel, WrapShape};
 use crate::error::ImportError;
 use glam::{Affine3A, Quat, Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
@@ -34,19 +34,18 @@ pub const ARC_STEP: f32 = PI / 12.0;
 /// Units: m.
 pub const SAME_POINT: f32 = super::builder::MIN_SEGMENT;
 
-/// Tendon `t`'s path in the world (bodies at `frame_of`): its sites, and
+/// The path in the world (bodies at `frame_of`) of `tendon`, whose sites
+/// are `sites` (resolved: [`MjcfModel::tendon_sites`]): its sites, and
 /// where `wrap` is set, the points where it wraps each of its wrapping
-/// geoms between them. Also returns how many wrapping geoms the path
-/// names.
+/// geoms between them.
 pub(super) fn tendon_path(
     model: &MjcfModel,
-    t: usize,
+    tendon: &MjTendon,
+    sites: &[&MjSite],
     frame_of: &impl Fn(Option<usize>) -> Affine3A,
     wrap: bool,
-) -> Result<(Vec<Vec3>, usize), ImportError> {
-    let tendon = &model.tendons[t];
-    let sites = model.tendon_sites(t)?;
-    let at = |s: &super::mjcf::MjSite| frame_of(s.body).transform_point3(s.pos);
+) -> Result<Vec<Vec3>, ImportError> {
+    let at = |s: &MjSite| frame_of(s.body).transform_point3(s.pos);
     let mut points = Vec::with_capacity(sites.len());
     for (k, site) in sites.iter().enumerate() {
         let next = at(site);
@@ -93,7 +92,7 @@ pub(super) fn tendon_path(
         }
         points.push(next);
     }
-    Ok((points, tendon.wraps.len()))
+    Ok(points)
 }
 
 /// Appends the wrap points `arc` to `points` (not empty), leaving out any
