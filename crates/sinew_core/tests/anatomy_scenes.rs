@@ -215,6 +215,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
         first_of_substep: true,
         split: false,
     };
+    const MAX_PUSH: f32 = 0.03;
     let mut moved = 0;
     for (m, ws) in solver.muscles().iter().zip(solver.workspaces()) {
         let c = &m.constraints.sliding;
@@ -227,6 +228,13 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
             for bone in (0..c.targets).filter(|&s| c.rigid[s] && c.outside_at_rest(i, s)) {
                 let surface = &targets[ws.target_ids[bone].index()];
                 let hit = surface.closest(m.p[v], None).unwrap();
+                // A push from at most 30 mm away: the walk from the bone's
+                // warm triangle is local, and a vertex moved 55 mm into a
+                // bone (T3's biceps' short head, vertex 24) walks to a far
+                // side that reads outside (a frame moves a vertex a few mm).
+                if hit.distance > MAX_PUSH {
+                    continue;
+                }
                 let (mut m, mut ws) = (m.clone(), ws.clone());
                 m.p[v] = hit.point - 2e-3 * hit.normal;
                 let inside = surface.closest(m.p[v], None).unwrap().signed_distance < -1e-3;
@@ -247,7 +255,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
         }
     }
     assert!(
-        moved >= 10,
+        moved >= 30,
         "{moved} vertices following a muscle were pushed into a bone"
     );
 }

@@ -144,10 +144,12 @@ fn t5_without_its_motion_settles_in_its_shape() {
 /// pair's distance over its shortest rest path along the edges): the
 /// triceps' edges must stretch ×1.15 and more (×1.24 before their
 /// tendons turned towards the line where they insert,
-/// `MuscleParams::tendon_pivot`), but the anconeus, a ball of
-/// 15 mm radius on a 21 mm path whose surface paths from end to end are
-/// 50 mm long, is not forced at all. Every muscle's largest edge strain is
-/// at least its forced strain (the bound holds).
+/// `MuscleParams::tendon_pivot`), and the anconeus, a ball of 15 mm
+/// radius on a 21 mm path whose attachments move ×2.26 apart, ×1.35 (its
+/// surface crumpled into itself by the builder's earlier way out of the
+/// bones, its paths from end to end were 50 mm long and it was not forced
+/// at all); the brachialis is not forced. Every muscle's largest edge
+/// strain is at least its forced strain (the bound holds).
 #[test]
 fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
     let path = t5_path();
@@ -184,7 +186,7 @@ fn t5s_attachments_shorten_the_flexors_and_lengthen_the_extensors() {
         forced("BRA")
     );
     assert!(forced("TRIlong") > 1.1 && forced("TRImed") > 1.2);
-    assert!(forced("ANC") < 1.0 && forced("BRA") < 1.0);
+    assert!(forced("ANC") > 1.3 && forced("BRA") < 1.0);
     for (i, m) in solver.muscles().iter().enumerate() {
         if let Some(f) = metrics.forced_strain_max[i] {
             let largest = metrics.strain[i].max.0;
@@ -234,10 +236,10 @@ fn t5_comes_back_to_its_rest_shape_after_its_flexions() {
 /// recipe). Carried by a blend of its bones instead (`HoldFrame::Bones`),
 /// the held shape of a muscle spanning the elbow folds over itself, and
 /// the muscles with it: the elbow's muscles (the anconeus aside, its
-/// attachment span ×2.8) reached an edge ×6.6 (the
-/// brachialis) and 272 folded triangles (each muscle's worst frame,
-/// summed; the biceps' long head 53); along the line ×3.3 (the biceps'
-/// short head) and 190.
+/// attachment span ×2.26) reach an edge ×4.2 and 265 folded triangles
+/// (each muscle's worst frame, summed); along the line ×1.96 and 2 (with
+/// the rest surfaces the builder crumpled before its rings moved within
+/// their planes: ×6.6 and 272 against ×3.3 and 190).
 #[test]
 fn t5s_held_shapes_follow_the_line_of_action_through_the_flexion() {
     use sinew_core::muscle::HoldFrame;
@@ -268,7 +270,7 @@ fn t5s_held_shapes_follow_the_line_of_action_through_the_flexion() {
     }
     let (line, bones) = (figures(&shipped), figures(&by_bones));
     eprintln!("largest strain, folded triangles: line {line:?}, bones {bones:?}");
-    assert!(line.0 < 4.0 && bones.0 > 5.0, "{line:?} {bones:?}");
+    assert!(line.0 < 2.5 && bones.0 > 3.5, "{line:?} {bones:?}");
     assert!((line.1 as f32) < 0.8 * bones.1 as f32, "{line:?} {bones:?}");
 }
 

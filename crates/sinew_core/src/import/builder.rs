@@ -198,19 +198,23 @@ pub fn sweep_path(
     force: Option<f32>,
     options: &SweepOptions,
 ) -> Result<SweptMuscle, ImportError> {
-    sweep_path_clear_of(name, points, force, options, &|c, _| c)
+    sweep_path_clear_of(name, points, force, options, &|c, _, r, _| (c, r))
 }
 
-/// [`sweep_path`] with the centre line moved by `clear(centre, radius)`
-/// before the rings are placed, e.g. out of bones: a path through a bone
-/// (a tendon that wraps around it in the source model) then runs beside it
-/// and the muscle does not enclose the bone.
+/// [`sweep_path`] with each ring placed by `clear(centre, normal, radius)`,
+/// which returns the ring's centre and radius, e.g. out of bones: a path
+/// through a bone (a tendon that wraps around it in the source model) then
+/// runs beside it and the muscle does not enclose the bone. `normal` is the
+/// curve's tangent at the ring, the normal of the ring's plane: a centre
+/// moved within that plane leaves the rings in the order and planes the
+/// curve gave them, so a surface swept along a straight path cannot cross
+/// itself, however far its rings move aside.
 pub fn sweep_path_clear_of(
     name: &str,
     points: &[Vec3],
     force: Option<f32>,
     options: &SweepOptions,
-    clear: &dyn Fn(Vec3, f32) -> Vec3,
+    clear: &dyn Fn(Vec3, Vec3, f32, Vec3) -> (Vec3, f32),
 ) -> Result<SweptMuscle, ImportError> {
     let err = |reason: String| ImportError::Path {
         muscle: name.to_string(),
@@ -238,14 +242,19 @@ pub fn sweep_path_clear_of(
         .map(|i| i as f32 / (rings + 1) as f32)
         .collect();
     let (mut centers, mut tangents, length) = resample(&polyline, &fractions);
-    for (i, c) in centers.iter_mut().enumerate().skip(1).take(rings) {
-        *c = clear(*c, spindle(fractions[i], belly, tendon));
-    }
-    // Tangents of the (possibly moved) centre line, by central differences.
+    // Tangents of the curve, by central differences: smooth along it.
     for i in 1..=rings {
         tangents[i] = (centers[i + 1] - centers[i - 1])
             .try_normalize()
             .unwrap_or(tangents[i]);
+    }
+    let mut radii = vec![0.0; rings + 2];
+    let mut shift = Vec3::ZERO;
+    for i in 1..=rings {
+        let on_path = centers[i];
+        let r = spindle(fractions[i], belly, tendon);
+        (centers[i], radii[i]) = clear(on_path, tangents[i], r, shift);
+        shift = centers[i] - on_path;
     }
     if length < 4.0 * tendon {
         return Err(err(format!(
@@ -265,7 +274,7 @@ pub fn sweep_path_clear_of(
         u = (u - t * u.dot(t)).normalize_or_zero();
         previous = t;
         let v = t.cross(u);
-        let r = spindle(fractions[i], belly, tendon);
+        let r = radii[i];
         let ring: Vec<u32> = (0..options.around)
             .map(|j| {
                 let phi = TAU * j as f32 / options.around as f32;
@@ -468,5 +477,50 @@ mod tests {
         // Still a valid mesh: no faces collapsed to a point.
         let polys: Vec<Vec<u32>> = m.mesh.polygons().map(<[u32]>::to_vec).collect();
         SurfaceMesh::new("pushed", positions, &polys).unwrap();
+    }
+
+    fn ball(centre: Vec3, radius: f32) -> TargetSurface {
+        let bone = crate::mesh::primitives::MeshGenerator::Ellipsoid {
+            center: centre,
+            radii: Vec3::splat(radius),
+            segments: 24,
+            stacks: 16,
+        }
+        .build("bone")
+        .unwrap();
+        TargetSurface::new(
+            "bone",
+            crate::closest::TargetSource::Bone(0),
+            bone.positions.clone(),
+            bone.triangles.clone(),
+        )
+    }
+
+    #[test]
+    fn rings_moved_aside_within_their_planes_leave_the_surface_uncrossed() {
+        // A straight path through the top of a bone: its rings move up out
+        // of the bone, each within its own plane, and the surface cannot
+        // cross itself. Moved instead to a radius from the nearest bone
+        // point in any direction, the rings leave their order along the
+        // path and the surface crumples into itself.
+        let bone = ball(Vec3::new(0.0, -0.012, 0.0), 0.02);
+        let path = [Vec3::new(-0.05, 0.0, 0.0), Vec3::new(0.05, 0.0, 0.0)];
+        let options = SweepOptions {
+            radius: Some(0.012),
+            ..SweepOptions::default()
+        };
+        let within = |c: Vec3, n: Vec3, r: f32, previous: Vec3| {
+            crate::import::clearance::clear_ring(c, n, r, 0.25 * r, previous, 0.001, &[&bone])
+        };
+        let m = sweep_path_clear_of("m", &path, None, &options, &within).unwrap();
+        assert_eq!(m.mesh.self_crossings(&m.mesh.positions), 0);
+        assert!(m.mesh.positions.iter().all(|&p| !bone.contains(p)));
+        let anywhere = |c: Vec3, _: Vec3, r: f32, _: Vec3| {
+            let hit = bone.closest(c, None).unwrap();
+            let out = (c - hit.point).normalize() * if bone.contains(c) { -1.0 } else { 1.0 };
+            (hit.point + out * (r + 0.001), r)
+        };
+        let m = sweep_path_clear_of("m", &path, None, &options, &anywhere).unwrap();
+        assert!(m.mesh.self_crossings(&m.mesh.positions) > 0);
     }
 }

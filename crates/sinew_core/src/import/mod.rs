@@ -12,6 +12,7 @@
 //!   one command: `sinew import-mjcf recipe.ron`.
 
 pub mod builder;
+mod clearance;
 pub mod mjcf;
 mod options;
 mod recipe;
@@ -243,7 +244,11 @@ pub fn import_model(
             let reach = Vec3::splat(sweep.belly_radius(actuator.force));
             let (plo, phi) = crate::mesh::bounds_of(&points);
             let near = bones_near((plo - reach, phi + reach));
-            let clear = |c: Vec3, r: f32| clear_of_bones(c, r + options.push_out_margin, &near);
+            let tendon = sweep.belly_radius(actuator.force) * sweep.tendon_ratio;
+            let margin = options.push_out_margin;
+            let clear = |c: Vec3, n: Vec3, r: f32, previous: Vec3| {
+                clearance::clear_ring(c, n, r, tendon, previous, margin, &near)
+            };
             let s = sweep_path_clear_of(&name, &points, actuator.force, &sweep, &clear)?;
             let take = options.attach_rings.min(s.rings.len() as u32 / 2) as usize;
             let first: Vec<u32> = s.rings[..take].iter().flatten().copied().collect();
@@ -456,28 +461,6 @@ type Bounds = (Vec3, Vec3);
 /// Whether two boxes overlap (touching counts).
 fn overlap(a: Bounds, b: Bounds) -> bool {
     (a.0.cmple(b.1) & a.1.cmpge(b.0)).all()
-}
-
-/// Moves a centre-line point out of `bones` (and at least `radius` from their
-/// surfaces), along the direction away from the nearest surface point.
-fn clear_of_bones(mut c: Vec3, radius: f32, bones: &[&TargetSurface]) -> Vec3 {
-    for _ in 0..3 {
-        let mut moved = false;
-        for b in bones {
-            let Some(hit) = b.closest_within(c, None, radius) else {
-                continue;
-            };
-            let inside = b.contains(c);
-            let away = (c - hit.point).try_normalize().unwrap_or(hit.normal);
-            let out = if inside { -away } else { away };
-            c = hit.point + out * radius;
-            moved = true;
-        }
-        if !moved {
-            break;
-        }
-    }
-    c
 }
 
 /// A user-supplied muscle mesh: roots at the vertices nearest the path's
