@@ -237,7 +237,7 @@ fn t5_comes_back_to_its_rest_shape_after_its_flexions() {
 /// the held shape of a muscle spanning the elbow folds over itself, and
 /// the muscles with it: the elbow's muscles (the anconeus aside, its
 /// attachment span ×2.26) reach an edge ×4.2 and 265 folded triangles
-/// (each muscle's worst frame, summed); along the line ×1.96 and 2 (with
+/// (each muscle's worst frame, summed); along the line ×1.62 and 3 (with
 /// the rest surfaces the builder crumpled before its rings moved within
 /// their planes: ×6.6 and 272 against ×3.3 and 190).
 #[test]

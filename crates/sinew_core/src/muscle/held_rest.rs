@@ -7,9 +7,21 @@
 //! ℓ         its rest length from the activation (DistanceBatch::own_rest), f = ℓ / r₀
 //! q         |g_a − g_b| / r₀: how the held shape stretches it
 //! λ         the activation's shortening along the fibres
-//! rest      r₀ q f        where f < 1 (the activation shortens it: along the fibres)
-//!           r₀ q f √λ     where f ≥ 1 (it lengthens it: across them)
+//! rest      r₀ min(q, f max(q, 1))   where f < 1 (the activation shortens it: along the fibres)
+//!           r₀ q f √λ                where f ≥ 1 (it lengthens it: across them)
 //! ```
+//!
+//! Along the fibres the activation shortens a fibre to `f` of the longer
+//! of its rest and held lengths, and never makes it longer than the held
+//! shape: a muscle the bones stretch (`q > 1`, the triceps in a flexion)
+//! is pulled taut by `f` against its held length; one they shorten
+//! (`q < 1`, the flexors) shortens to `f` of its rest length, or follows
+//! the held shape where the bones shortened it further still. Taking `f`
+//! of the held length there too compounded the two: on T5 at full flexion
+//! the brachialis' fibres (`q` ≈ 0.71, `f` = 0.65) wanted ×0.46 of their
+//! rest length, and the flexors' held ends took the difference, the
+//! biceps' long head's edges ×0.49–×1.96 and the brachioradialis'
+//! ×0.40–×1.80 (now ×0.49–×1.46 and ×0.51–×1.54).
 //!
 //! Across the fibres the activation's bulge `β = √(G/λ)` keeps the volume
 //! gain `G` of a muscle free to shorten to `λ`; held between its bones it
@@ -70,16 +82,42 @@ fn follow(batch: &mut DistanceBatch, rest: &[glam::Vec3], goals: &[glam::Vec3], 
             continue;
         }
         let q = goals[a].distance(goals[b]) / r0;
-        let own = batch.own_rest[k];
-        let f = own / r0;
-        batch.rest[k] = if f < 1.0 { own * q } else { own * q * across };
+        batch.rest[k] = followed_rest(r0, batch.own_rest[k], q, across);
+    }
+}
+
+/// A constraint's rest length following the held shape (module docs): `r0`
+/// its length in the rest shape, `own` its activation's rest length, `q`
+/// the held shape's stretch of it, `across` `√λ`.
+fn followed_rest(r0: f32, own: f32, q: f32, across: f32) -> f32 {
+    let f = own / r0;
+    if f < 1.0 {
+        r0 * q.min(f * q.max(1.0))
+    } else {
+        own * q * across
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::followed_rest;
     use crate::scene::Scene;
     use std::path::Path;
+
+    /// Along the fibres (`own` < `r0`): stretched by the bones, `f` of the
+    /// held length; shortened, `f` of the rest length, or the held length
+    /// where that is shorter still; across them the bulge on the held length.
+    #[test]
+    fn the_activation_shortens_a_fibre_from_the_longer_of_its_rest_and_held_lengths() {
+        let close = |a: f32, b: f32| (a - b).abs() < 1e-6;
+        // f = 0.65.
+        assert!(close(followed_rest(1.0, 0.65, 1.3, 1.0), 0.65 * 1.3));
+        assert!(close(followed_rest(1.0, 0.65, 0.8, 1.0), 0.65));
+        assert!(close(followed_rest(1.0, 0.65, 0.5, 1.0), 0.5));
+        assert!(close(followed_rest(2.0, 1.3, 0.8, 1.0), 1.3));
+        // Across (f ≥ 1): the bulge on the held length.
+        assert!(close(followed_rest(1.0, 1.2, 0.9, 0.8), 1.2 * 0.9 * 0.8));
+    }
 
     /// T5 at its first flexion's peak: with its rest lengths following the
     /// held shape, a triceps' edges take the line's stretch along their

@@ -185,8 +185,10 @@ pub struct MuscleParams {
     /// line ([`HoldFrame::Line`]) follow that held shape: each Fiber,
     /// Branch and Internal constraint's rest length becomes its length in
     /// the held shape, shortened by the activation where the activation
-    /// shortens it (along the fibres: the muscle pulls taut between its
-    /// tendons) and, where the activation lengthens it (across them),
+    /// shortens it (along the fibres, to its share of the longer of the
+    /// rest and held lengths and never beyond the held one: the muscle
+    /// pulls taut between its tendons, and a flexor its joint shortens is
+    /// not shortened twice) and, where the activation lengthens it (across them),
     /// swollen by the volume gain alone — the held line, not the muscle,
     /// sets the muscle's length, so the bulge that keeps the volume at a
     /// shortened length would wrinkle it. The held shape itself then
