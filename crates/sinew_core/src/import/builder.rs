@@ -201,8 +201,9 @@ pub fn sweep_path(
     sweep_path_clear_of(name, points, force, options, &|c, _, r, _| (c, r))
 }
 
-/// [`sweep_path`] with each ring placed by `clear(centre, normal, radius)`,
-/// which returns the ring's centre and radius, e.g. out of bones: a path
+/// [`sweep_path`] with each ring placed by `clear(centre, normal, radius,
+/// previous)`, which returns the ring's centre and radius (`previous`: how
+/// far the ring before it was moved), e.g. out of bones: a path
 /// through a bone (a tendon that wraps around it in the source model) then
 /// runs beside it and the muscle does not enclose the bone. `normal` is the
 /// curve's tangent at the ring, the normal of the ring's plane: a centre
