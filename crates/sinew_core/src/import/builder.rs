@@ -243,6 +243,11 @@ pub fn sweep_path_clear_of(
         .map(|i| i as f32 / (rings + 1) as f32)
         .collect();
     let (mut centers, mut tangents, length) = resample(&polyline, &fractions);
+    if length < 4.0 * tendon {
+        return Err(err(format!(
+            "path is {length:.4} m long, too short for a muscle of radius {belly:.4} m"
+        )));
+    }
     // Tangents of the curve, by central differences: smooth along it.
     for i in 1..=rings {
         tangents[i] = (centers[i + 1] - centers[i - 1])
@@ -256,11 +261,6 @@ pub fn sweep_path_clear_of(
         let r = spindle(fractions[i], belly, tendon);
         (centers[i], radii[i]) = clear(on_path, tangents[i], r, shift);
         shift = centers[i] - on_path;
-    }
-    if length < 4.0 * tendon {
-        return Err(err(format!(
-            "path is {length:.4} m long, too short for a muscle of radius {belly:.4} m"
-        )));
     }
     // Parallel-transported frame.
     let (mut u, _) = perpendicular_basis(tangents[0]);

@@ -28,7 +28,7 @@ const DIRECTIONS: usize = 24;
 const THINNING_STEPS: usize = 4;
 
 /// Farthest a ring's centre moves within its plane. Units: m.
-pub const MAX_SHIFT: f32 = 0.05;
+const MAX_SHIFT: f32 = 0.05;
 
 /// A ring's centre and radius clear of `bones`: the ring of centre `c`,
 /// plane normal `normal` and radius `radius` goes to a place within its
@@ -68,9 +68,10 @@ pub(super) fn clear_ring(
             return (c, r);
         }
         let step = (0.25 * r).max(margin).max(1e-4);
-        // Candidates: staying, keeping the previous move, and along each
-        // direction the first clear place and the one nearest the previous move.
-        let mut candidates = vec![Vec3::ZERO, previous];
+        // Candidates (staying is not one: it was just found not clear):
+        // keeping the previous move, and along each direction the first
+        // clear place and the one nearest the previous move.
+        let mut candidates = vec![previous];
         for j in 0..DIRECTIONS {
             let phi = TAU * j as f32 / DIRECTIONS as f32;
             let d = phi.cos() * u + phi.sin() * v;

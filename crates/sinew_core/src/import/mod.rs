@@ -240,14 +240,16 @@ pub fn import_model(
             if let Some((_, r)) = options.radii.iter().find(|(m, _)| *m == name) {
                 sweep.radius = Some(*r);
             }
-            // Bones near the path: its centre line is kept a radius away.
-            let reach = Vec3::splat(sweep.belly_radius(actuator.force));
+            // Bones near the path: its rings are moved aside out of them,
+            // thinned down to the tendon's radius where they must be.
+            let belly = sweep.belly_radius(actuator.force);
+            let reach = Vec3::splat(belly);
             let (plo, phi) = crate::mesh::bounds_of(&points);
             let near = bones_near((plo - reach, phi + reach));
-            let tendon = sweep.belly_radius(actuator.force) * sweep.tendon_ratio;
+            let tendon_radius = belly * sweep.tendon_ratio;
             let margin = options.push_out_margin;
             let clear = |c: Vec3, n: Vec3, r: f32, previous: Vec3| {
-                clearance::clear_ring(c, n, r, tendon, previous, margin, &near)
+                clearance::clear_ring(c, n, r, tendon_radius, previous, margin, &near)
             };
             let s = sweep_path_clear_of(&name, &points, actuator.force, &sweep, &clear)?;
             let take = options.attach_rings.min(s.rings.len() as u32 / 2) as usize;
