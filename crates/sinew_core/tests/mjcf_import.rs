@@ -147,6 +147,92 @@ fn a_user_mesh_replaces_the_swept_one() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// `held_rings` holds more rings at one end than `attach_rings` does: the
+/// flexor's origin two rings of the swept mesh on the upper bone, its
+/// insertion none (its tip alone) on the forearm; and on a user mesh the
+/// rings round its tips by edge hops.
+#[test]
+fn held_rings_hold_more_or_fewer_rings_at_each_end() {
+    let dir = scratch("held");
+    let m = MjcfModel::load(&fixture()).unwrap();
+    let around = SweepOptions::default().around as usize;
+    let options = ImportOptions {
+        held_rings: vec![("flexor".into(), 2, 0)],
+        ..Default::default()
+    };
+    let imported = import_model(&m, &options, &dir, Path::new("meshes")).unwrap();
+    let flexor = &imported.scene.muscles[0];
+    assert_eq!(
+        (on_bone(flexor, "upper"), on_bone(flexor, "fore")),
+        (1 + 2 * around, 1)
+    );
+    // The two rings are the two next to the origin's tip: vertices 1 to
+    // 2 × around of the sweep, ring by ring.
+    let mut upper: Vec<u32> = flexor
+        .attachments
+        .iter()
+        .filter(|a| a.bone.as_deref() == Some("upper"))
+        .filter_map(|a| a.vertex)
+        .collect();
+    upper.sort_unstable();
+    assert_eq!(upper, (0..=2 * around as u32).collect::<Vec<_>>());
+    let solver = imported.scene.instantiate(&dir).unwrap();
+    assert_eq!(solver.muscles()[0].attachments.len(), 2 + 2 * around);
+
+    // A user mesh: the same sweep as a file, two rings at its insertion.
+    let swept = sinew_core::import::builder::sweep_path(
+        "mine",
+        &[Vec3::new(0.03, 0.98, 0.0), Vec3::new(0.02, 0.64, 0.0)],
+        Some(200.0),
+        &SweepOptions::default(),
+    )
+    .unwrap();
+    let file = dir.join("mine.obj");
+    sinew_core::import::write_obj(&file, &swept.mesh.positions, swept.mesh.polygons()).unwrap();
+    let options = ImportOptions {
+        user_meshes: vec![UserMuscleMesh {
+            muscle: "flexor".into(),
+            file: file.to_string_lossy().into_owned(),
+        }],
+        held_rings: vec![("flexor".into(), 1, 2)],
+        ..Default::default()
+    };
+    let imported = import_model(&m, &options, &dir, Path::new("meshes")).unwrap();
+    let flexor = &imported.scene.muscles[0];
+    assert_eq!(
+        (on_bone(flexor, "upper"), on_bone(flexor, "fore")),
+        (1 + around, 1 + 2 * around)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// How many of `muscle`'s attachments are on `bone`.
+fn on_bone(muscle: &sinew_core::scene::MuscleSpec, bone: &str) -> usize {
+    let held = muscle.attachments.iter();
+    held.filter(|a| a.bone.as_deref() == Some(bone)).count()
+}
+
+/// A per-muscle override naming a muscle that is not imported is an
+/// error that names it and the option, not an override silently ignored.
+#[test]
+fn an_override_for_a_muscle_not_imported_is_an_error() {
+    let dir = scratch("override");
+    let m = MjcfModel::load(&fixture()).unwrap();
+    let held = ImportOptions {
+        held_rings: vec![("extensor".into(), 2, 2)],
+        ..Default::default()
+    };
+    let result = import_model(&m, &held, &dir, Path::new("meshes")).map(|_| ());
+    expect_err(result, &["held_rings", "extensor", "arm.xml"]);
+    let radii = ImportOptions {
+        radii: vec![("flexr".into(), 0.01)],
+        ..Default::default()
+    };
+    let result = import_model(&m, &radii, &dir, Path::new("meshes")).map(|_| ());
+    expect_err(result, &["radii", "flexr"]);
+    std::fs::remove_dir_all(dir).ok();
+}
+
 fn expect_err(result: Result<impl std::fmt::Debug, ImportError>, needles: &[&str]) {
     let err = result.expect_err("bad input must fail");
     let text = err.to_string();

@@ -214,6 +214,24 @@ pub fn import_model(
             })
             .collect::<Result<_, _>>()?
     };
+    // Per-muscle overrides name muscles being imported.
+    let overridden = options
+        .radii
+        .iter()
+        .map(|(m, _)| ("radii", m))
+        .chain(options.held_rings.iter().map(|(m, ..)| ("held_rings", m)));
+    for (field, name) in overridden {
+        if !chosen.iter().any(|&a| model.actuators[a].name == *name) {
+            return Err(ImportError::UnknownName {
+                context: format!(
+                    "import option `{field}` (import of {})",
+                    model.file.display()
+                ),
+                kind: "muscle being imported",
+                name: name.clone(),
+            });
+        }
+    }
     let mut built: Vec<BuiltMuscle> = Vec::with_capacity(chosen.len());
     for &a in &chosen {
         let actuator = &model.actuators[a];
@@ -252,9 +270,10 @@ pub fn import_model(
                 clearance::clear_ring(c, n, r, tendon_radius, previous, margin, &near)
             };
             let s = sweep_path_clear_of(&name, &points, actuator.force, &sweep, &clear)?;
-            let take = options.attach_rings.min(s.rings.len() as u32 / 2) as usize;
-            let first: Vec<u32> = s.rings[..take].iter().flatten().copied().collect();
-            let last: Vec<u32> = s.rings[s.rings.len() - take..]
+            let half = s.rings.len() as u32 / 2;
+            let [origin, insertion] = options.rings_held_by(&name).map(|k| k.min(half) as usize);
+            let first: Vec<u32> = s.rings[..origin].iter().flatten().copied().collect();
+            let last: Vec<u32> = s.rings[s.rings.len() - insertion..]
                 .iter()
                 .flatten()
                 .copied()
@@ -465,8 +484,31 @@ fn overlap(a: Bounds, b: Bounds) -> bool {
     (a.0.cmple(b.1) & a.1.cmpge(b.0)).all()
 }
 
+/// The vertices within `rings` edges of `tip` on `mesh`, `tip` left out,
+/// nearest first (a user mesh's held rings: its rings are the tip's
+/// neighbours, theirs, …).
+fn rings_around(mesh: &SurfaceMesh, tip: u32, rings: u32) -> Vec<u32> {
+    let mut seen = vec![false; mesh.positions.len()];
+    seen[tip as usize] = true;
+    let (mut held, mut front) = (Vec::new(), vec![tip]);
+    for _ in 0..rings {
+        let mut next = Vec::new();
+        for &v in &front {
+            for &n in mesh.neighbors_of(v as usize) {
+                if !std::mem::replace(&mut seen[n as usize], true) {
+                    next.push(n);
+                }
+            }
+        }
+        held.extend_from_slice(&next);
+        front = next;
+    }
+    held
+}
+
 /// A user-supplied muscle mesh: roots at the vertices nearest the path's
-/// ends, those plus their neighbours held, fibres along the path.
+/// ends, those plus the rings around them that the options hold
+/// ([`ImportOptions::rings_held_by`]), fibres along the path.
 fn user_muscle(
     name: &str,
     file: &Path,
@@ -484,13 +526,8 @@ fn user_muscle(
     }
     let tip = |p: Vec3| crate::muscle::nearest_vertex(&mesh.positions, p);
     let tips = [tip(points[0]), tip(points[points.len() - 1])];
-    let ends = tips.map(|t| {
-        if options.attach_rings == 0 {
-            Vec::new()
-        } else {
-            mesh.neighbors_of(t as usize).to_vec()
-        }
-    });
+    let held = options.rings_held_by(name);
+    let ends = [0, 1].map(|e| rings_around(&mesh, tips[e], held[e]));
     // Direction of, and nearest point on, the path segment nearest to each vertex.
     let (fibers, centers) = mesh
         .positions

@@ -41,12 +41,20 @@ pub struct ImportOptions {
     pub muscles: Vec<String>,
     /// Mesh resolution and thickness.
     pub sweep: SweepOptions,
-    /// Per-muscle belly radius overrides `(muscle, radius m)`.
+    /// Per-muscle belly radius overrides `(muscle, radius m)`. A name that
+    /// is not among the imported muscles is an error.
     pub radii: Vec<(String, f32)>,
     /// User meshes instead of swept ones.
     pub user_meshes: Vec<UserMuscleMesh>,
     /// Rings at each end held by the bone, besides the tip vertex.
+    /// Default: 1.
     pub attach_rings: u32,
+    /// Per-muscle overrides of `attach_rings`: `(muscle, rings held at its
+    /// origin, rings held at its insertion)`, each besides the tip vertex
+    /// (0: the tip alone). A longer tendon, or a broader attachment, holds
+    /// more of the surface on its bone. A name that is not among the
+    /// imported muscles is an error. Default: none.
+    pub held_rings: Vec<(String, u32, u32)>,
     /// Most muscles a muscle targets (nearest first).
     pub muscle_targets: usize,
     /// Most bones a muscle targets (nearest first).
@@ -78,6 +86,7 @@ impl Default for ImportOptions {
             radii: Vec::new(),
             user_meshes: Vec::new(),
             attach_rings: 1,
+            held_rings: Vec::new(),
             muscle_targets: 5,
             bone_targets: 3,
             neighbour_distance: 0.02,
@@ -88,5 +97,19 @@ impl Default for ImportOptions {
             y_up: true,
             params: MuscleParams::default(),
         }
+    }
+}
+
+impl ImportOptions {
+    /// Rings held at the origin and at the insertion of `muscle`, besides
+    /// its tips: its [`Self::held_rings`] entry, or [`Self::attach_rings`]
+    /// at both ends.
+    pub fn rings_held_by(&self, muscle: &str) -> [u32; 2] {
+        self.held_rings
+            .iter()
+            .find(|(m, ..)| m == muscle)
+            .map_or([self.attach_rings; 2], |&(_, origin, insertion)| {
+                [origin, insertion]
+            })
     }
 }
