@@ -334,3 +334,60 @@ fn t5s_held_lines_bend_and_its_tendons_pivot_where_they_insert() {
     assert!(bent.3.0 >= 0.6 && bent.3.1 <= 1.6, "{bent:?}");
     assert!(own.3.1 > 1.6, "{own:?}");
 }
+
+/// T5's biceps hold two rings at each end on their bones and its
+/// brachialis two at its insertion (`held_rings` in its recipe: long
+/// tendons, a broad insertion). Through the first flexion (200 frames)
+/// the brachialis turns no triangle and the biceps' long head keeps its
+/// edges at ×0.6 or more; the same scene held by one ring at every end
+/// (each attachment more than one edge from its tip dropped) has the short
+/// head push the brachialis' second ring back through its held one
+/// (triangles turned) and the long head's ring next to its origin close
+/// below ×0.55 round it.
+#[test]
+fn t5s_biceps_and_brachialis_held_over_two_rings_keep_their_ends() {
+    use std::collections::VecDeque;
+    let path = t5_path();
+    let shipped = Scene::load(&path).unwrap();
+    let solver = shipped.instantiate(path.parent().unwrap()).unwrap();
+    let mut one_ring = shipped.clone();
+    let mut dropped = Vec::new();
+    for spec in &mut one_ring.muscles {
+        let m = &solver.muscles()[solver.muscle_index(&spec.name).unwrap()];
+        // Edge hops from the nearest tip.
+        let mut hops = vec![u32::MAX; m.surface_count];
+        let mut queue: VecDeque<u32> = m.roots.iter().copied().collect();
+        for &r in &m.roots {
+            hops[r as usize] = 0;
+        }
+        while let Some(v) = queue.pop_front() {
+            for &n in m.mesh.neighbors_of(v as usize) {
+                if hops[n as usize] == u32::MAX {
+                    hops[n as usize] = hops[v as usize] + 1;
+                    queue.push_back(n);
+                }
+            }
+        }
+        let before = spec.attachments.len();
+        spec.attachments
+            .retain(|a| a.vertex.is_none_or(|v| hops[v as usize] <= 1));
+        if spec.attachments.len() < before {
+            dropped.push(spec.name.clone());
+        }
+    }
+    dropped.sort();
+    assert_eq!(dropped, ["ANC", "BIClong", "BICshort", "BRA"]);
+    let figures = |scene: &Scene| {
+        let (solver, metrics) = run(scene, path.parent().unwrap(), 200, 1000);
+        let index = |n: &str| solver.muscle_index(n).unwrap();
+        (
+            metrics.flipped_max[index("BRA")].0,
+            metrics.strain[index("BIClong")].min.0,
+        )
+    };
+    let (two, one) = (figures(&shipped), figures(&one_ring));
+    eprintln!("brachialis turned, long head's least strain: two rings {two:?}, one {one:?}");
+    assert_eq!(two.0, 0, "{two:?}");
+    assert!(two.1 >= 0.6, "{two:?}");
+    assert!(one.0 > 0 && one.1 < 0.55, "{one:?}");
+}
