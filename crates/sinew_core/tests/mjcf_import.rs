@@ -156,19 +156,26 @@ fn held_rings_hold_more_or_fewer_rings_at_each_end() {
     let dir = scratch("held");
     let m = MjcfModel::load(&fixture()).unwrap();
     let around = SweepOptions::default().around as usize;
-    let options = ImportOptions {
-        held_rings: vec![("flexor".into(), 2, 0)],
-        ..Default::default()
+    // The flexor imported with `held_rings`, and how many of its
+    // attachments are on the upper bone and on the forearm.
+    let import_held = |held_rings, user_meshes| {
+        let options = ImportOptions {
+            held_rings: vec![held_rings],
+            user_meshes,
+            ..Default::default()
+        };
+        let scene = import_model(&m, &options, &dir, Path::new("meshes"))
+            .unwrap()
+            .scene;
+        let flexor = &scene.muscles[0];
+        let held = (on_bone(flexor, "upper"), on_bone(flexor, "fore"));
+        (scene, held)
     };
-    let imported = import_model(&m, &options, &dir, Path::new("meshes")).unwrap();
-    let flexor = &imported.scene.muscles[0];
-    assert_eq!(
-        (on_bone(flexor, "upper"), on_bone(flexor, "fore")),
-        (1 + 2 * around, 1)
-    );
+    let (scene, held) = import_held(("flexor".into(), 2, 0), Vec::new());
+    assert_eq!(held, (1 + 2 * around, 1));
     // The two rings are the two next to the origin's tip: vertices 1 to
     // 2 × around of the sweep, ring by ring.
-    let mut upper: Vec<u32> = flexor
+    let mut upper: Vec<u32> = scene.muscles[0]
         .attachments
         .iter()
         .filter(|a| a.bone.as_deref() == Some("upper"))
@@ -176,7 +183,7 @@ fn held_rings_hold_more_or_fewer_rings_at_each_end() {
         .collect();
     upper.sort_unstable();
     assert_eq!(upper, (0..=2 * around as u32).collect::<Vec<_>>());
-    let solver = imported.scene.instantiate(&dir).unwrap();
+    let solver = scene.instantiate(&dir).unwrap();
     assert_eq!(solver.muscles()[0].attachments.len(), 2 + 2 * around);
 
     // A user mesh: the same sweep as a file, two rings at its insertion.
@@ -189,20 +196,12 @@ fn held_rings_hold_more_or_fewer_rings_at_each_end() {
     .unwrap();
     let file = dir.join("mine.obj");
     sinew_core::import::write_obj(&file, &swept.mesh.positions, swept.mesh.polygons()).unwrap();
-    let options = ImportOptions {
-        user_meshes: vec![UserMuscleMesh {
-            muscle: "flexor".into(),
-            file: file.to_string_lossy().into_owned(),
-        }],
-        held_rings: vec![("flexor".into(), 1, 2)],
-        ..Default::default()
-    };
-    let imported = import_model(&m, &options, &dir, Path::new("meshes")).unwrap();
-    let flexor = &imported.scene.muscles[0];
-    assert_eq!(
-        (on_bone(flexor, "upper"), on_bone(flexor, "fore")),
-        (1 + around, 1 + 2 * around)
-    );
+    let user = vec![UserMuscleMesh {
+        muscle: "flexor".into(),
+        file: file.to_string_lossy().into_owned(),
+    }];
+    let (_, held) = import_held(("flexor".into(), 1, 2), user);
+    assert_eq!(held, (1 + around, 1 + 2 * around));
     std::fs::remove_dir_all(dir).ok();
 }
 
