@@ -346,7 +346,6 @@ fn t5s_held_lines_bend_and_its_tendons_pivot_where_they_insert() {
 /// below ×0.55 round it.
 #[test]
 fn t5s_biceps_and_brachialis_held_over_two_rings_keep_their_ends() {
-    use std::collections::VecDeque;
     let path = t5_path();
     let shipped = Scene::load(&path).unwrap();
     let solver = shipped.instantiate(path.parent().unwrap()).unwrap();
@@ -356,17 +355,8 @@ fn t5s_biceps_and_brachialis_held_over_two_rings_keep_their_ends() {
         let m = &solver.muscles()[solver.muscle_index(&spec.name).unwrap()];
         // Edge hops from the nearest tip.
         let mut hops = vec![u32::MAX; m.surface_count];
-        let mut queue: VecDeque<u32> = m.roots.iter().copied().collect();
-        for &r in &m.roots {
-            hops[r as usize] = 0;
-        }
-        while let Some(v) = queue.pop_front() {
-            for &n in m.mesh.neighbors_of(v as usize) {
-                if hops[n as usize] == u32::MAX {
-                    hops[n as usize] = hops[v as usize] + 1;
-                    queue.push_back(n);
-                }
-            }
+        for (v, h) in m.mesh.breadth_first(&m.roots) {
+            hops[v as usize] = h;
         }
         let before = spec.attachments.len();
         spec.attachments

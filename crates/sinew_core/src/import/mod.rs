@@ -488,22 +488,9 @@ fn overlap(a: Bounds, b: Bounds) -> bool {
 /// nearest first (a user mesh's held rings: its rings are the tip's
 /// neighbours, theirs, …).
 fn rings_around(mesh: &SurfaceMesh, tip: u32, rings: u32) -> Vec<u32> {
-    let mut seen = vec![false; mesh.positions.len()];
-    seen[tip as usize] = true;
-    let (mut held, mut front) = (Vec::new(), vec![tip]);
-    for _ in 0..rings {
-        let mut next = Vec::new();
-        for &v in &front {
-            for &n in mesh.neighbors_of(v as usize) {
-                if !std::mem::replace(&mut seen[n as usize], true) {
-                    next.push(n);
-                }
-            }
-        }
-        held.extend_from_slice(&next);
-        front = next;
-    }
-    held
+    let reached = mesh.breadth_first(&[tip]).into_iter().skip(1);
+    let within = reached.take_while(|&(_, hops)| hops <= rings);
+    within.map(|(v, _)| v).collect()
 }
 
 /// A user-supplied muscle mesh: roots at the vertices nearest the path's

@@ -178,6 +178,30 @@ impl SurfaceMesh {
         &self.neighbors[self.neighbor_offsets[v] as usize..self.neighbor_offsets[v + 1] as usize]
     }
 
+    /// The vertices reachable over mesh edges from `from`, breadth first,
+    /// each with its number of edges from the nearest of `from` (those at
+    /// 0, in their order, a repeated one once): hops never decrease along
+    /// the list. Vertices on a shell `from` does not touch are not in it.
+    pub fn breadth_first(&self, from: &[u32]) -> Vec<(u32, u32)> {
+        let mut seen = vec![false; self.vertex_count()];
+        let mut order: Vec<(u32, u32)> = Vec::with_capacity(self.vertex_count());
+        for &v in from {
+            if !std::mem::replace(&mut seen[v as usize], true) {
+                order.push((v, 0));
+            }
+        }
+        let mut next = 0;
+        while let Some(&(v, hops)) = order.get(next) {
+            next += 1;
+            for &n in self.neighbors_of(v as usize) {
+                if !std::mem::replace(&mut seen[n as usize], true) {
+                    order.push((n, hops + 1));
+                }
+            }
+        }
+        order
+    }
+
     /// Returns a copy whose polygons are all triangles (diagonals become edges).
     pub fn triangulated(&self) -> Self {
         let polys: Vec<Vec<u32>> = self.triangles.iter().map(|t| t.to_vec()).collect();

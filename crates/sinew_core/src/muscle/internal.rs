@@ -18,7 +18,7 @@
 
 use crate::mesh::SurfaceMesh;
 use glam::Vec3;
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::BTreeSet;
 
 /// Options for [`InternalStructure::build`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -65,20 +65,8 @@ impl InternalStructure {
         let n = mesh.vertex_count();
         // 1. BFS levels.
         let mut level = vec![u32::MAX; n];
-        let mut queue = VecDeque::new();
-        for &r in roots {
-            if level[r as usize] == u32::MAX {
-                level[r as usize] = 0;
-                queue.push_back(r);
-            }
-        }
-        while let Some(v) = queue.pop_front() {
-            for &u in mesh.neighbors_of(v as usize) {
-                if level[u as usize] == u32::MAX {
-                    level[u as usize] = level[v as usize] + 1;
-                    queue.push_back(u);
-                }
-            }
+        for (v, hops) in mesh.breadth_first(roots) {
+            level[v as usize] = hops;
         }
         // Vertices unreachable from the roots (another shell) form their own levels.
         let max_level = level
