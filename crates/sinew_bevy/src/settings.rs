@@ -143,6 +143,10 @@ pub struct SinewSettings {
     pub feature_contacts: bool,
     /// Walk over the targets in every iteration. Default `true`.
     pub walk_every_iteration: bool,
+    /// Iterations between two bone-contact passes of a substep (as
+    /// [`SolverSettings::bone_contact_interval`]; the first and each
+    /// muscle's last always have one). Default `1` (every iteration).
+    pub bone_contact_interval: u32,
     /// Measure per-block time into [`SinewTimings`]. Default `true`.
     pub timers: bool,
     /// The order constraint types are projected in.
@@ -174,6 +178,7 @@ impl From<SolverSettings> for SinewSettings {
             choose_interval: s.choose_interval,
             feature_contacts: s.feature_contacts,
             walk_every_iteration: s.walk_every_iteration,
+            bone_contact_interval: s.bone_contact_interval,
             timers: s.timers,
             projection_order: s.projection_order,
         }
@@ -197,6 +202,7 @@ impl SinewSettings {
             choose_interval: self.choose_interval,
             feature_contacts: self.feature_contacts,
             walk_every_iteration: self.walk_every_iteration,
+            bone_contact_interval: self.bone_contact_interval,
             threads: self.threads,
             schedule: self.schedule,
             parallel_threshold: self.parallel_threshold,

@@ -283,6 +283,7 @@ mod tests {
     use crate::animation::TransformTrack;
     use crate::mesh::primitives::MeshGenerator;
     use crate::muscle::{MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
+    use crate::solver::params::{FrameParams, Parallelism};
     use crate::{Solver, SolverSettings};
 
     /// A surface layer of 738 vertices (more than [`CLOSEST_CHUNK`], so it
@@ -319,6 +320,53 @@ mod tests {
             .unwrap();
         solver.step();
         solver
+    }
+
+    /// The iterations of a substep whose bone contacts run, for a muscle
+    /// (or a surface layer) on the global count (10) or its own, under
+    /// `interval`.
+    fn contact_iterations(interval: u32, own: Option<u32>, layer: bool) -> Vec<u32> {
+        let settings = SolverSettings {
+            bone_contact_interval: interval,
+            ..SolverSettings::default()
+        };
+        let frame = FrameParams::new(&settings, 0, Parallelism::default());
+        let mut m = layer_around_a_bar().muscles[0].clone();
+        m.params.iterations = own;
+        if !layer {
+            m.params = MuscleParams {
+                iterations: own,
+                ..MuscleParams::default()
+            };
+        }
+        let count = frame.iterations_for([&m]).max(settings.iterations);
+        let sub = frame.substep(0);
+        (0..count)
+            .map(|i| sub.iteration(i, count))
+            .filter(|it| it.runs(&m) && it.contacts_bones(&m))
+            .map(|it| it.index)
+            .collect()
+    }
+
+    /// A muscle's bone contacts run in a substep's first iteration, every
+    /// `bone_contact_interval`-th after it, and the muscle's own last (so
+    /// that a substep ends with every vertex out of the bones), whatever
+    /// its iteration count; a surface layer's in every iteration.
+    #[test]
+    fn bone_contacts_run_first_every_interval_and_last() {
+        let muscle = |interval, own| contact_iterations(interval, own, false);
+        assert_eq!(muscle(1, None), (0..10).collect::<Vec<_>>());
+        assert_eq!(muscle(3, None), [0, 3, 6, 9]);
+        assert_eq!(muscle(4, None), [0, 4, 8, 9]);
+        assert_eq!(muscle(10, None), [0, 9]);
+        assert_eq!(muscle(50, None), [0, 9]);
+        // A muscle with fewer iterations than the others ends on its own.
+        assert_eq!(muscle(3, Some(5)), [0, 3, 4]);
+        assert_eq!(muscle(3, Some(1)), [0]);
+        // And one with more.
+        assert_eq!(muscle(5, Some(12)), [0, 5, 10, 11]);
+        // A skin keeps them in every iteration.
+        assert_eq!(contact_iterations(3, Some(4), true), [0, 1, 2, 3]);
     }
 
     /// Every vertex pulled to a fifth of its distance from the bar's axis:

@@ -144,6 +144,8 @@ pub struct FrameParams {
     pub feature_contacts: bool,
     /// Walk in every iteration.
     pub walk_every_iteration: bool,
+    /// Iterations between bone contacts.
+    pub bone_contact_interval: u32,
     /// How coloured methods use the threads.
     pub schedule: SweepSchedule,
     /// Worker threads (`0`: every core, `1`: the calling thread only).
@@ -169,6 +171,7 @@ impl FrameParams {
             choose_interval: settings.choose_interval.max(1),
             feature_contacts: settings.feature_contacts,
             walk_every_iteration: settings.walk_every_iteration,
+            bone_contact_interval: settings.bone_contact_interval.max(1),
             schedule: settings.schedule,
             threads: settings.threads,
             parallelism,
@@ -256,7 +259,24 @@ impl IterationParams {
 
     /// Whether `m` runs this iteration (`index <` its own count).
     pub fn runs(&self, m: &Muscle) -> bool {
-        self.index < m.params.iterations.unwrap_or(self.substep.frame.iterations)
+        self.index < self.own_count(m)
+    }
+
+    /// The iterations `m` runs in a substep: its own count or the global.
+    fn own_count(&self, m: &Muscle) -> u32 {
+        m.params.iterations.unwrap_or(self.substep.frame.iterations)
+    }
+
+    /// Whether `m`'s bone contacts run this iteration: in the substep's
+    /// first, every [`SolverSettings::bone_contact_interval`]-th after it
+    /// and `m`'s last; a surface layer's (a skin: few iterations, and
+    /// Sliding's walk only in the first) in every one.
+    pub fn contacts_bones(&self, m: &Muscle) -> bool {
+        let every = match m.params.is_surface_layer() {
+            true => 1,
+            false => self.substep.frame.bone_contact_interval,
+        };
+        self.index.is_multiple_of(every) || self.index + 1 == self.own_count(m)
     }
 
     /// Closest data's schedule for this iteration.

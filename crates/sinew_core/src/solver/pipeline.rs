@@ -226,7 +226,9 @@ pub fn finish<T: TargetSet + Sync + ?Sized>(
             project_volume(m, inv_h2, split);
         }
     }
-    bone_contacts(m, ws, targets, p.first_of_substep(), split);
+    if p.contacts_bones(m) {
+        bone_contacts(m, ws, targets, p.first_of_substep(), split);
+    }
     if trailing {
         project_volume(m, inv_h2, split);
     }
