@@ -179,16 +179,17 @@ pub struct SolverSettings {
     /// triangle's plane to the next triangle at the next frame, a kick that
     /// kept T5 at rest moving at 1.2 mm/s (0.08 with walking). Default: `true`.
     pub walk_every_iteration: bool,
-    /// Bone contacts ([`crate::solver::bone_contacts`]: a vertex inside a
-    /// bone put back on its surface) run in every this many iterations of a
-    /// substep — the first, every `k`-th after it — and always in each
-    /// muscle's last: every substep still ends with no vertex inside a
-    /// bone, and in between Sliding keeps the vertices out as it does every
-    /// other contact. On T7 they were a quarter of the frame (every
-    /// vertex, every iteration); at `3` its frame took ×0.85 and the share
-    /// of vertices inside a bone at a frame's end went from 0.50 % to
-    /// 0.55 % at worst (ARCHITECTURE.md, "Bone contacts every few
-    /// iterations"). `1` = every iteration. Units: iterations. Default: `1`.
+    /// A muscle's bone contacts (a vertex inside a bone put back on its
+    /// surface, after each iteration's projections) run in every this many
+    /// iterations of a substep — the first, every `k`-th after it — and
+    /// always in the muscle's last: every substep still ends with no vertex
+    /// inside a bone, and in between Sliding keeps vertices out as it does
+    /// off every other target. A surface layer (a skin) keeps them in every
+    /// iteration. On T7 they were a quarter of the frame; at `3` its walk
+    /// took ×0.94 on one thread and ×0.90 on two, and its worst share of
+    /// vertices inside a bone went from 0.50 % to 0.51 % (ARCHITECTURE.md,
+    /// "Bone contacts every few iterations"). `1` = every iteration.
+    /// Units: iterations. Default: `1`.
     pub bone_contact_interval: u32,
     /// Worker threads for closest data and projection, split by muscle
     /// (SPEC §9.1): `1` spawns none, `0` uses every core. Muscles read each
