@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compares two `sinew` binaries on a noisy, shared machine: both at once.
 
-    scripts/ab_bench.py OLD NEW [--rounds N] -- BENCH_ARGS...
+    scripts/ab_bench.py OLD NEW [--rounds N] [--old-args A] [--new-args A] -- BENCH_ARGS...
 
 e.g. `scripts/ab_bench.py /tmp/sinew_old target/release/sinew --rounds 3 --
 assets/scenes/t7.ron --from 120 --frames 40 --runs 3`.
@@ -18,6 +18,11 @@ other for a while, so two consecutive rounds (the cores swapped) make a
 pair whose geometric mean cancels that. The table gives each side's median
 ms/frame over the rounds, the median of the pairs' ratios (of the rounds'
 with a single round) and each round's ratio.
+
+`--old-args` and `--new-args` add arguments to one side only, so one
+build can be compared with itself under another setting, e.g.
+`--old-args="--bone-contact-interval 1"` (with `=`: the value starts with
+dashes) and the same binary on both sides.
 
 One thread each, so it compares single-thread work (what a change to a
 kernel or a cache changes), not the scaling over threads. Standard library
@@ -48,12 +53,18 @@ def blocks(text):
 def main():
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0],
-        usage="%(prog)s OLD NEW [--rounds N] -- BENCH_ARGS...",
+        usage="%(prog)s OLD NEW [--rounds N] [--old-args A] [--new-args A] -- BENCH_ARGS...",
     )
     parser.add_argument("old", help="the sinew binary to compare against")
     parser.add_argument("new", help="the sinew binary under test")
     parser.add_argument(
         "--rounds", type=int, default=4, help="rounds, best even: pairs swap the cores (default 4)"
+    )
+    parser.add_argument(
+        "--old-args", default="", help="more bench arguments for OLD only (one string, split on spaces)"
+    )
+    parser.add_argument(
+        "--new-args", default="", help="more bench arguments for NEW only (one string, split on spaces)"
     )
     argv = sys.argv[1:]
     split = argv.index("--") if "--" in argv else len(argv)
@@ -61,7 +72,8 @@ def main():
     bench = argv[split + 1:]
     if not bench:
         parser.error("give sinew bench's arguments after --")
-    if any(a == "--threads" or a.startswith("--threads=") for a in bench):
+    extra = {"old": args.old_args.split(), "new": args.new_args.split()}
+    if any(a == "--threads" or a.startswith("--threads=") for a in bench + extra["old"] + extra["new"]):
         parser.error("leave --threads out: each side runs on one pinned core")
     if args.rounds < 1:
         parser.error("--rounds must be at least 1")
@@ -76,7 +88,7 @@ def main():
         cores = {"old": r % 2, "new": 1 - r % 2}
         procs = {
             side: subprocess.Popen(
-                ["taskset", "-c", str(cores[side]), binary, "bench", *bench, "--threads", "1"],
+                ["taskset", "-c", str(cores[side]), binary, "bench", *bench, *extra[side], "--threads", "1"],
                 stdout=subprocess.PIPE,
                 stderr=subprocess.STDOUT,
                 text=True,

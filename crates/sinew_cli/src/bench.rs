@@ -130,6 +130,10 @@ pub struct Overrides {
     /// How coloured methods use the threads (default: the scene's, `auto`).
     #[arg(long, value_enum)]
     pub schedule: Option<Schedule>,
+    /// Iterations between two bone-contact passes of a substep (the first
+    /// and each muscle's last always have one; default: the scene's).
+    #[arg(long)]
+    pub bone_contact_interval: Option<u32>,
 }
 
 /// [`SweepSchedule`] on the command line.
@@ -156,6 +160,9 @@ impl Overrides {
         }
         if let Some(m) = self.method {
             solver.settings.method = m.solver_method(self.omega, self.min_group);
+        }
+        if let Some(k) = self.bone_contact_interval {
+            solver.settings.bone_contact_interval = k;
         }
         if let Some(s) = self.schedule {
             solver.settings.schedule = match s {

@@ -65,3 +65,28 @@ fn residuals_list_each_type_at_a_muscles_worst_strain() {
     let (_, plain) = check(&["T1", "--frames", "60"]);
     assert!(!plain.contains("largest at"), "{plain}");
 }
+
+#[test]
+fn a_bone_contact_interval_override_is_taken_and_zero_is_refused_by_name() {
+    // T1 has no bones: any interval gives the same run, so the report is
+    // the same line for line whatever the override says.
+    let (ok, every) = check(&["T1", "--frames", "30"]);
+    let (ok_3, third) = check(&["T1", "--frames", "30", "--bone-contact-interval", "3"]);
+    assert_eq!(ok, ok_3);
+    let figures = |r: &str| r.lines().skip(1).map(String::from).collect::<Vec<_>>();
+    assert_eq!(figures(&every), figures(&third));
+    let out = Command::new(env!("CARGO_BIN_EXE_sinew"))
+        .args([
+            "check",
+            "T1",
+            "--frames",
+            "2",
+            "--bone-contact-interval",
+            "0",
+        ])
+        .output()
+        .expect("sinew runs");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bone_contact_interval = 0"), "{err}");
+}
