@@ -186,8 +186,9 @@ pub struct SolverSettings {
     /// inside a bone, and in between Sliding keeps vertices out as it does
     /// off every other target. A surface layer (a skin) keeps them in every
     /// iteration. On T7 they were a quarter of the frame; at `3` its walk
-    /// took ×0.94 on one thread and ×0.90 on two, and its worst share of
-    /// vertices inside a bone went from 0.50 % to 0.51 % (ARCHITECTURE.md,
+    /// took ×0.93 of the instructions (×0.94–0.99 of the time on one
+    /// thread), and its worst share of vertices inside a bone went from
+    /// 0.50 % to 0.51 % (ARCHITECTURE.md,
     /// "Bone contacts every few iterations"). `1` = every iteration.
     /// Units: iterations. Default: `1`.
     pub bone_contact_interval: u32,
