@@ -332,14 +332,11 @@ mod tests {
         };
         let frame = FrameParams::new(&settings, 0, Parallelism::default());
         let mut m = layer_around_a_bar().muscles[0].clone();
-        m.params.iterations = own;
         if !layer {
-            m.params = MuscleParams {
-                iterations: own,
-                ..MuscleParams::default()
-            };
+            m.params = MuscleParams::default();
         }
-        let count = frame.iterations_for([&m]).max(settings.iterations);
+        m.params.iterations = own;
+        let count = frame.iterations_for([&m]);
         let sub = frame.substep(0);
         (0..count)
             .map(|i| sub.iteration(i, count))

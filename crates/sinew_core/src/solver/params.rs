@@ -183,8 +183,13 @@ impl FrameParams {
     pub fn iterations_for<'a>(&self, muscles: impl IntoIterator<Item = &'a Muscle>) -> u32 {
         muscles
             .into_iter()
-            .map(|m| m.params.iterations.unwrap_or(self.iterations))
+            .map(|m| self.iterations_of(m))
             .fold(self.iterations, u32::max)
+    }
+
+    /// The iterations `m` runs in a substep: its own count or the global.
+    pub fn iterations_of(&self, m: &Muscle) -> u32 {
+        m.params.iterations.unwrap_or(self.iterations)
     }
 
     /// Substep `index` (0-based).
@@ -259,12 +264,7 @@ impl IterationParams {
 
     /// Whether `m` runs this iteration (`index <` its own count).
     pub fn runs(&self, m: &Muscle) -> bool {
-        self.index < self.own_count(m)
-    }
-
-    /// The iterations `m` runs in a substep: its own count or the global.
-    fn own_count(&self, m: &Muscle) -> u32 {
-        m.params.iterations.unwrap_or(self.substep.frame.iterations)
+        self.index < self.substep.frame.iterations_of(m)
     }
 
     /// Whether `m`'s bone contacts run this iteration: in the substep's
@@ -276,7 +276,7 @@ impl IterationParams {
             true => 1,
             false => self.substep.frame.bone_contact_interval,
         };
-        self.index.is_multiple_of(every) || self.index + 1 == self.own_count(m)
+        self.index.is_multiple_of(every) || self.index + 1 == self.substep.frame.iterations_of(m)
     }
 
     /// Closest data's schedule for this iteration.
