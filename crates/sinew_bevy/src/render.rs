@@ -233,7 +233,7 @@ fn add_bone_meshes(
             })
             .clone();
         let t = &target.0;
-        let mesh = meshes.add(triangle_mesh(&t.positions, &t.triangles));
+        let mesh = meshes.add(triangle_mesh(t.positions(), t.triangles()));
         commands
             .entity(entity)
             .insert((Mesh3d(mesh), MeshMaterial3d(material), BoneMesh));

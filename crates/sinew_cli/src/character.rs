@@ -286,7 +286,7 @@ pub fn fit(args: &FitArgs) -> Result<ExitCode, Box<dyn Error>> {
         object("skin", &character.positions, &character.triangles);
         for (b, points) in &geometry.bones {
             let bone = &solver.bones()[*b];
-            let triangles = &solver.targets()[bone.target.expect("a bone with a mesh")].triangles;
+            let triangles = solver.targets()[bone.target.expect("a bone with a mesh")].triangles();
             object(&format!("bone:{}", bone.name), points, triangles);
         }
         for (points, m) in geometry.muscles.iter().zip(solver.muscles()) {

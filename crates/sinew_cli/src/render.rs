@@ -133,11 +133,11 @@ fn collect(solver: &Solver, bones: bool, skin: SkinDraw) -> Vec<Tri> {
                 continue;
             }
             let world: Vec<Vec3> = t
-                .positions
+                .positions()
                 .iter()
                 .map(|&p| t.transform.transform_point3(p))
                 .collect();
-            for tri in &t.triangles {
+            for tri in t.triangles() {
                 tris.push(Tri {
                     p: tri.map(|i| world[i as usize]),
                     color: [0.86, 0.83, 0.74],
@@ -172,7 +172,7 @@ fn framed_points(solver: &Solver, focus: Option<&str>, tris: &[Tri]) -> Result<V
         }
         if let Some(t) = solver.targets().iter().find(|t| t.name == name) {
             return Ok(t
-                .positions
+                .positions()
                 .iter()
                 .map(|&p| t.transform.transform_point3(p))
                 .collect());

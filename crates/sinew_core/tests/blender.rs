@@ -166,7 +166,7 @@ fn bake_and_check(mut solver: sinew_core::Solver, dir: &Path, frames: &[&str]) {
             let bones = bones.flat_map(|(b, t)| {
                 let target = &solver.targets()[t];
                 target
-                    .positions
+                    .positions()
                     .iter()
                     .map(|&p| b.transform.transform_point3(p))
                     .collect::<Vec<_>>()

@@ -267,9 +267,9 @@ fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
         .expect("a bone target")
         .0;
     assert!(
-        target.triangles.len() > 100,
+        target.triangles().len() > 100,
         "{} triangles",
-        target.triangles.len()
+        target.triangles().len()
     );
     let state = app.world().get::<MuscleState>(muscle).unwrap();
     let sliding = &state.muscle.constraints.sliding;

@@ -52,8 +52,8 @@ pub(super) fn nodes(solver: &Solver, unit: f32) -> Vec<NodeRecord> {
             let target = &solver.targets()[t];
             MeshRecord {
                 name: bone.name.clone(),
-                positions: target.positions.iter().map(|&p| p / unit).collect(),
-                triangles: target.triangles.clone(),
+                positions: target.positions().iter().map(|&p| p / unit).collect(),
+                triangles: target.triangles().to_vec(),
                 cache: None,
             }
         });

@@ -39,6 +39,7 @@
 
 use crate::constraints::TargetId;
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
+use std::sync::Arc;
 
 mod bvh;
 mod faces;
@@ -118,31 +119,51 @@ impl TargetSet for [&TargetSurface] {
 }
 
 /// Triangle geometry of one target, with a BVH.
+///
+/// Cloning a target is cheap: its geometry ([`SurfaceGeometry`]) is shared
+/// behind an [`Arc`] and copied only when a clone of a deforming target
+/// publishes new positions (copy on write). The solver gives every bone
+/// whose mesh is the same, in its local frame, the one geometry (a crowd's
+/// copies of a body, [`crate::scene::Scene::crowd`]).
 #[derive(Clone)]
 pub struct TargetSurface {
     /// Name (bone or muscle).
     pub name: String,
     /// Where the target comes from.
     pub source: TargetSource,
-    /// Vertex positions in the target's local frame (world for muscles).
-    pub positions: Vec<Vec3>,
-    /// Area-weighted vertex normals, local frame.
-    pub normals: Vec<Vec3>,
-    /// Triangles.
-    pub triangles: Vec<[u32; 3]>,
     /// World from local (identity for muscles).
     pub transform: Affine3A,
     inverse: Affine3A,
     /// `transform` is the identity (muscle targets): skip the transforms.
     identity: bool,
-    bvh: TriangleBvh,
-    /// Positions the BVH's boxes were fitted to.
-    fitted: Vec<Vec3>,
+    /// The positions, normals, triangles, BVH and adjacency, shared with
+    /// every target of the same geometry.
+    geometry: Arc<SurfaceGeometry>,
     /// How far any vertex has moved since the BVH was fitted: every box,
     /// grown by this, still bounds its triangle.
     slack: f32,
-    /// [`TargetSurface::refit`] refits once `slack` exceeds this (a quarter
-    /// of the mean edge length).
+    /// Per vertex of a deforming target, its particle's inverse mass (see
+    /// [`TargetSurface::point_inverse_mass`]); empty for rigid targets.
+    inverse_mass: Vec<f32>,
+}
+
+/// What targets of one mesh share: everything a closest-point query reads
+/// but the frame and the slack. A rigid target's never changes after it is
+/// built; a deforming target's positions, normals and BVH fit change as its
+/// muscle publishes them.
+#[derive(Clone)]
+struct SurfaceGeometry {
+    /// Vertex positions in the target's local frame (world for muscles).
+    positions: Vec<Vec3>,
+    /// Area-weighted vertex normals, local frame.
+    normals: Vec<Vec3>,
+    /// Triangles.
+    triangles: Vec<[u32; 3]>,
+    bvh: TriangleBvh,
+    /// Positions the BVH's boxes were fitted to.
+    fitted: Vec<Vec3>,
+    /// [`TargetSurface::refit`] refits once the slack exceeds this (a
+    /// quarter of the mean edge length).
     max_slack: f32,
     /// CSR offsets of the triangles around each vertex.
     vertex_triangle_offsets: Vec<u32>,
@@ -154,9 +175,6 @@ pub struct TargetSurface {
     neighbor_offsets: Vec<u32>,
     /// CSR entries of each vertex's neighbours.
     neighbors: Vec<u32>,
-    /// Per vertex of a deforming target, its particle's inverse mass (see
-    /// [`TargetSurface::point_inverse_mass`]); empty for rigid targets.
-    inverse_mass: Vec<f32>,
     /// A bone's face kinds and pseudo-normals, which say which side of it
     /// a hit is on; empty for a deforming target.
     /// (Boxed: the closest-point queries read the fields above, and keep
@@ -169,8 +187,8 @@ impl std::fmt::Debug for TargetSurface {
         f.debug_struct("TargetSurface")
             .field("name", &self.name)
             .field("source", &self.source)
-            .field("vertices", &self.positions.len())
-            .field("triangles", &self.triangles.len())
+            .field("vertices", &self.geometry.positions.len())
+            .field("triangles", &self.geometry.triangles.len())
             .finish()
     }
 }
@@ -249,23 +267,25 @@ impl TargetSurface {
         Self {
             name: name.into(),
             source,
-            positions,
-            normals,
-            triangles,
             transform: Affine3A::IDENTITY,
             inverse: Affine3A::IDENTITY,
             identity: true,
-            bvh,
-            fitted,
+            geometry: Arc::new(SurfaceGeometry {
+                positions,
+                normals,
+                triangles,
+                bvh,
+                fitted,
+                max_slack,
+                vertex_triangle_offsets,
+                vertex_triangles,
+                across_edge,
+                neighbor_offsets,
+                neighbors,
+                pseudo_normals,
+            }),
             slack: 0.0,
-            max_slack,
-            vertex_triangle_offsets,
-            vertex_triangles,
-            across_edge,
-            neighbor_offsets,
-            neighbors,
             inverse_mass: Vec::new(),
-            pseudo_normals,
         }
     }
 
@@ -278,7 +298,7 @@ impl TargetSurface {
         if self.inverse_mass.is_empty() {
             return 0.0;
         }
-        let [a, b, c] = self.triangles[triangle as usize];
+        let [a, b, c] = self.geometry.triangles[triangle as usize];
         let w = &self.inverse_mass;
         barycentric.x * barycentric.x * w[a as usize]
             + barycentric.y * barycentric.y * w[b as usize]
@@ -288,7 +308,11 @@ impl TargetSurface {
     /// Triangles around vertex `v`.
     #[inline]
     fn triangles_around(&self, v: u32) -> &[u32] {
-        csr_row(&self.vertex_triangle_offsets, &self.vertex_triangles, v)
+        csr_row(
+            &self.geometry.vertex_triangle_offsets,
+            &self.geometry.vertex_triangles,
+            v,
+        )
     }
 
     /// A world point in the target's local frame.
@@ -308,6 +332,53 @@ impl TargetSurface {
         self.identity = transform == Affine3A::IDENTITY;
     }
 
+    /// Vertex positions in the target's local frame (world for a muscle: its
+    /// last published snapshot).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.geometry.positions
+    }
+
+    /// Area-weighted unit vertex normals, local frame (a muscle's as of its
+    /// last [`TargetSurface::update_normals`]).
+    pub fn normals(&self) -> &[Vec3] {
+        &self.geometry.normals
+    }
+
+    /// The triangles, as vertex indices.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.geometry.triangles
+    }
+
+    /// A rigid target of `name` and `source` on this target's geometry,
+    /// shared rather than copied (its frame starts as this target's).
+    /// Building one from the same mesh would give the same queries, bit for
+    /// bit: the geometry is a function of the positions and triangles alone.
+    pub fn sharing_geometry(&self, name: impl Into<String>, source: TargetSource) -> Self {
+        Self {
+            name: name.into(),
+            source,
+            inverse_mass: Vec::new(),
+            slack: 0.0,
+            ..self.clone()
+        }
+    }
+
+    /// Whether this is a rigid target built from exactly these local
+    /// positions (to the bit) and triangles, whose geometry a bone of that mesh can
+    /// share ([`TargetSurface::sharing_geometry`]).
+    pub fn is_rigid_of(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> bool {
+        let bits = |p: &Vec3| p.to_array().map(f32::to_bits);
+        !self.is_deforming()
+            && self.geometry.triangles == triangles
+            && self.geometry.positions.len() == positions.len()
+            && (self.geometry.positions.iter().map(bits)).eq(positions.iter().map(bits))
+    }
+
+    /// Whether two targets share one geometry (not merely equal ones).
+    pub fn shares_geometry_with(&self, other: &TargetSurface) -> bool {
+        Arc::ptr_eq(&self.geometry, &other.geometry)
+    }
+
     /// Whether the target deforms (a muscle) rather than moving rigidly with
     /// a bone.
     #[inline]
@@ -318,18 +389,19 @@ impl TargetSurface {
     /// World position of local vertex `i`.
     #[inline]
     pub fn world_vertex(&self, i: u32) -> Vec3 {
-        self.transform.transform_point3(self.positions[i as usize])
+        self.transform
+            .transform_point3(self.geometry.positions[i as usize])
     }
 
     /// Closest point on triangle `t` to a local-frame point: `(point, barycentric)`.
     #[inline]
     fn closest_on_triangle(&self, t: u32, q: Vec3) -> (Vec3, Vec3) {
-        let [a, b, c] = self.triangles[t as usize];
+        let [a, b, c] = self.geometry.triangles[t as usize];
         closest_point_triangle(
             q,
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
+            self.geometry.positions[a as usize],
+            self.geometry.positions[b as usize],
+            self.geometry.positions[c as usize],
         )
     }
 
@@ -355,7 +427,7 @@ impl TargetSurface {
         } else {
             f32::MAX
         };
-        if let Some(t) = warm.filter(|&t| (t as usize) < self.triangles.len()) {
+        if let Some(t) = warm.filter(|&t| (t as usize) < self.geometry.triangles.len()) {
             let (c, bary) = self.closest_on_triangle(t, q);
             let d2 = c.distance_squared(q);
             if d2 <= bound {
@@ -365,7 +437,7 @@ impl TargetSurface {
             }
         }
         // Boxes grown by the slack still bound their triangles.
-        let found = self.bvh.closest(q, bound, self.slack, |leaf| {
+        let found = self.geometry.bvh.closest(q, bound, self.slack, |leaf| {
             let (c, bary) = self.closest_on_triangle(leaf, q);
             (c.distance_squared(q), (c, bary))
         });
@@ -385,10 +457,11 @@ impl TargetSurface {
     pub fn winding_number(&self, query: Vec3) -> f32 {
         let q = self.to_local(query);
         let sum: f64 = self
+            .geometry
             .triangles
             .iter()
             .map(|t| {
-                let [a, b, c] = t.map(|i| (self.positions[i as usize] - q).as_dvec3());
+                let [a, b, c] = t.map(|i| (self.geometry.positions[i as usize] - q).as_dvec3());
                 winding::solid_angle(a, b, c)
             })
             .sum();
@@ -407,7 +480,7 @@ impl TargetSurface {
     /// target skips targets whose bound exceeds the best distance found.
     pub fn lower_bound(&self, query: Vec3) -> f32 {
         let q = self.to_local(query);
-        self.bvh.lower_bound(q, self.slack)
+        self.geometry.bvh.lower_bound(q, self.slack)
     }
 
     /// A world-space box around the target as it is now (its local box,
@@ -415,7 +488,7 @@ impl TargetSurface {
     /// it has no triangles: a point outside it by `d` is at least `d` from
     /// every triangle.
     pub fn world_box(&self) -> Option<(Vec3A, Vec3A)> {
-        let (lo, hi) = self.bvh.root_box()?;
+        let (lo, hi) = self.geometry.bvh.root_box()?;
         let (lo, hi) = (lo - Vec3A::splat(self.slack), hi + Vec3A::splat(self.slack));
         if self.identity {
             return Some((lo, hi));
@@ -430,13 +503,13 @@ impl TargetSurface {
 
     /// [`TargetSurface::lower_bound`] for a point already in the local frame.
     pub fn lower_bound_local(&self, local: Vec3) -> f32 {
-        self.bvh.lower_bound(local, self.slack)
+        self.geometry.bvh.lower_bound(local, self.slack)
     }
 
     /// Closest point to `query` on triangle `t` only, or `None` when `t` is
     /// out of range.
     pub fn on_triangle(&self, query: Vec3, t: u32) -> Option<ClosestHit> {
-        if t as usize >= self.triangles.len() {
+        if t as usize >= self.geometry.triangles.len() {
             return None;
         }
         let q = self.to_local(query);
@@ -447,7 +520,8 @@ impl TargetSurface {
     /// World unit normal of triangle `t`'s plane (from its winding; `Y`
     /// for a degenerate triangle).
     pub fn face_normal(&self, t: u32) -> Vec3 {
-        let [a, b, c] = self.triangles[t as usize].map(|i| self.positions[i as usize]);
+        let [a, b, c] =
+            self.geometry.triangles[t as usize].map(|i| self.geometry.positions[i as usize]);
         let local = (b - a).cross(c - a);
         if self.identity {
             local.normalize_or(Vec3::Y)
@@ -461,10 +535,10 @@ impl TargetSurface {
     /// World point at barycentric `bary` of triangle `t`.
     #[inline]
     pub fn point_at(&self, t: u32, bary: Vec3) -> Vec3 {
-        let [a, b, c] = self.triangles[t as usize];
-        let local = self.positions[a as usize] * bary.x
-            + self.positions[b as usize] * bary.y
-            + self.positions[c as usize] * bary.z;
+        let [a, b, c] = self.geometry.triangles[t as usize];
+        let local = self.geometry.positions[a as usize] * bary.x
+            + self.geometry.positions[b as usize] * bary.y
+            + self.geometry.positions[c as usize] * bary.z;
         self.transform.transform_point3(local)
     }
 
@@ -494,19 +568,24 @@ impl TargetSurface {
     /// Origin and basis `[t̂ b̂ n̂]` of the tangent frame, in the local frame.
     #[inline]
     fn local_frame(&self, t: u32, bary: Vec3) -> (Vec3, Mat3A) {
-        let [a, b, c] = self.triangles[t as usize].map(|i| i as usize);
+        let [a, b, c] = self.geometry.triangles[t as usize].map(|i| i as usize);
         let at = |v: &[Vec3], i: usize| Vec3A::from(v[i]);
         let (wa, wb, wc) = (bary.x, bary.y, bary.z);
-        let n = (at(&self.normals, a) * wa + at(&self.normals, b) * wb + at(&self.normals, c) * wc)
+        let n = (at(&self.geometry.normals, a) * wa
+            + at(&self.geometry.normals, b) * wb
+            + at(&self.geometry.normals, c) * wc)
             .try_normalize()
             .unwrap_or(Vec3A::Y);
-        let (pa, pb) = (at(&self.positions, a), at(&self.positions, b));
+        let (pa, pb) = (
+            at(&self.geometry.positions, a),
+            at(&self.geometry.positions, b),
+        );
         let e = pb - pa;
         let t_hat = (e - e.dot(n) * n)
             .try_normalize()
             .unwrap_or_else(|| n.any_orthonormal_vector());
         let b_hat = n.cross(t_hat);
-        let origin = pa * wa + pb * wb + at(&self.positions, c) * wc;
+        let origin = pa * wa + pb * wb + at(&self.geometry.positions, c) * wc;
         (origin.into(), Mat3A::from_cols(t_hat, b_hat, n))
     }
 }

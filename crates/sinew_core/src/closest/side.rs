@@ -273,7 +273,7 @@ impl TargetSurface {
         memo: &mut SideMemo,
         bone: u32,
     ) -> ClosestHit {
-        let p = &self.pseudo_normals;
+        let p = &self.geometry.pseudo_normals;
         // A deforming target; or a smooth normal that reads outside and
         // leans less than 60° off the direction to the query, which a small
         // motion cannot turn (wrong, it leaves a vertex inside where it is;
@@ -285,8 +285,8 @@ impl TargetSurface {
         let t = hit.triangle as usize;
         let exact = p.side(
             hit.triangle,
-            self.triangles[t],
-            self.across_edge[t],
+            self.geometry.triangles[t],
+            self.geometry.across_edge[t],
             hit.barycentric,
             q - self.to_local(hit.point),
         );
@@ -301,7 +301,12 @@ impl TargetSurface {
             (_, Some((oriented, tree))) => match memo.side_at(bone, q) {
                 Some(side) => side,
                 None => {
-                    let w = tree.winding_number(&self.bvh, &self.positions, oriented, q);
+                    let w = tree.winding_number(
+                        &self.geometry.bvh,
+                        &self.geometry.positions,
+                        oriented,
+                        q,
+                    );
                     let side = 0.5 - w;
                     let distance = self
                         .closest_within(query, Some(hit.triangle), f32::MAX)

@@ -246,7 +246,7 @@ fn a_flat_surface_keeps_its_normal() {
         positions.clone(),
         triangles.clone(),
     );
-    assert!(plane.pseudo_normals.is_empty());
+    assert!(plane.geometry.pseudo_normals.is_empty());
     let below = Vec3::new(0.3, -0.0015, 0.2);
     let hit = plane.closest(below, None).unwrap();
     let settled = plane.settle_side(below, hit, &mut SideMemo::default(), 0);
@@ -255,5 +255,5 @@ fn a_flat_surface_keeps_its_normal() {
     let mut bent = positions;
     bent[2].y = 0.5;
     let sheet = TargetSurface::new("bent", TargetSource::Bone(0), bent, triangles);
-    assert!(!sheet.pseudo_normals.is_empty());
+    assert!(!sheet.geometry.pseudo_normals.is_empty());
 }

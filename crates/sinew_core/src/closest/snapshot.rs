@@ -1,10 +1,13 @@
 //! A deforming target's snapshot: the positions, normals, BVH fit and
 //! inverse masses other muscles read of a muscle, as its driver publishes
 //! them (a copy each iteration, or a swap of a buffer the muscle staged in
-//! its own task) and refreshes them once a frame.
+//! its own task) and refreshes them once a frame. A deforming target's
+//! geometry is its own (copied on its first write after a clone), so these
+//! writes never reach another target.
 
 use super::TargetSurface;
 use glam::Vec3;
+use std::sync::Arc;
 
 impl TargetSurface {
     /// Sets the inverse masses of a deforming target's vertices (its
@@ -27,8 +30,9 @@ impl TargetSurface {
         if !moved.is_finite() {
             return;
         }
-        self.positions.clear();
-        self.positions.extend_from_slice(positions);
+        let g = Arc::make_mut(&mut self.geometry);
+        g.positions.clear();
+        g.positions.extend_from_slice(positions);
         self.slack = moved.sqrt();
     }
 
@@ -38,7 +42,7 @@ impl TargetSurface {
     pub fn moved_squared(&self, positions: &[Vec3]) -> f32 {
         positions
             .iter()
-            .zip(&self.fitted)
+            .zip(&self.geometry.fitted)
             .map(|(p, f)| p.distance_squared(*f))
             .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m })
     }
@@ -51,13 +55,13 @@ impl TargetSurface {
     pub fn publish_staged(&mut self, positions: &mut Vec<Vec3>, moved_squared: f32) {
         debug_assert_eq!(
             positions.len(),
-            self.positions.len(),
+            self.geometry.positions.len(),
             "staged for another surface"
         );
         if !moved_squared.is_finite() {
             return;
         }
-        std::mem::swap(&mut self.positions, positions);
+        std::mem::swap(&mut Arc::make_mut(&mut self.geometry).positions, positions);
         self.slack = moved_squared.sqrt();
     }
 
@@ -65,17 +69,19 @@ impl TargetSurface {
     /// does it in the first iteration of each frame; within a frame the
     /// normals of a muscle target lag its positions by a few iterations.
     pub fn update_normals(&mut self) {
-        crate::mesh::vertex_normals(&self.triangles, &self.positions, &mut self.normals);
+        let g = Arc::make_mut(&mut self.geometry);
+        crate::mesh::vertex_normals(&g.triangles, &g.positions, &mut g.normals);
     }
 
     /// Refits the BVH to the current positions once the slack exceeds a
     /// quarter of the mean edge length (or always, with `force`).
     pub fn refit(&mut self, force: bool) {
-        if !force && self.slack <= self.max_slack {
+        if !force && self.slack <= self.geometry.max_slack {
             return;
         }
-        self.bvh.refit(&self.positions, &self.triangles);
-        self.fitted.clone_from(&self.positions);
+        let g = Arc::make_mut(&mut self.geometry);
+        g.bvh.refit(&g.positions, &g.triangles);
+        g.fitted.clone_from(&g.positions);
         self.slack = 0.0;
     }
 }

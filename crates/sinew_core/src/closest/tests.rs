@@ -25,7 +25,7 @@ fn jitter(i: usize) -> Vec3 {
 }
 
 fn brute_force(t: &TargetSurface, q: Vec3) -> f32 {
-    (0..t.triangles.len() as u32)
+    (0..t.triangles().len() as u32)
         .map(|i| t.closest_on_triangle(i, q).0.distance(q))
         .fold(f32::MAX, f32::min)
 }
@@ -57,7 +57,7 @@ fn walk_reaches_the_closest_point_of_a_convex_target() {
 fn full_search_stays_exact_on_a_moved_target_before_refit() {
     let mut t = ellipsoid_target();
     let moved: Vec<Vec3> = t
-        .positions
+        .positions()
         .iter()
         .enumerate()
         .map(|(i, p)| *p * 1.05 + 0.002 * jitter(i) + Vec3::new(0.003, 0.0, 0.0))
@@ -81,7 +81,7 @@ fn full_search_stays_exact_on_a_moved_target_before_refit() {
 #[test]
 fn a_staged_publish_gives_the_snapshot_and_slack_of_a_copying_one() {
     let moved: Vec<Vec3> = ellipsoid_target()
-        .positions
+        .positions()
         .iter()
         .enumerate()
         .map(|(i, p)| *p * 1.02 + 0.001 * jitter(i))
@@ -92,7 +92,7 @@ fn a_staged_publish_gives_the_snapshot_and_slack_of_a_copying_one() {
     let mut staged = moved.clone();
     let slack = swapped.moved_squared(&staged);
     swapped.publish_staged(&mut staged, slack);
-    assert_eq!(swapped.positions, copied.positions);
+    assert_eq!(swapped.positions(), copied.positions());
     assert_eq!(swapped.slack.to_bits(), copied.slack.to_bits());
     assert!(swapped.slack > 0.0);
     // A staged surface that is not finite is not published: the muscles
@@ -101,6 +101,6 @@ fn a_staged_publish_gives_the_snapshot_and_slack_of_a_copying_one() {
     bad[3].x = f32::NAN;
     let bad_slack = swapped.moved_squared(&bad);
     swapped.publish_staged(&mut bad, bad_slack);
-    assert_eq!(swapped.positions, moved);
+    assert_eq!(swapped.positions(), moved);
     assert!(bad[3].x.is_nan(), "the buffer keeps what was staged");
 }

@@ -14,7 +14,7 @@ impl TargetSurface {
     /// range or the walk needed more than [`TargetSurface::MAX_WALK_STEPS`]
     /// steps (the caller then runs the full search).
     pub fn walk(&self, query: Vec3, start: u32) -> Option<ClosestHit> {
-        if start as usize >= self.triangles.len() {
+        if start as usize >= self.geometry.triangles.len() {
             return None;
         }
         let q = self.to_local(query);
@@ -22,7 +22,7 @@ impl TargetSurface {
         let (mut c, mut bary) = self.closest_on_triangle(t, q);
         let mut d2 = c.distance_squared(q);
         for _ in 0..Self::MAX_WALK_STEPS {
-            let tri = self.triangles[t as usize];
+            let tri = self.geometry.triangles[t as usize];
             let next = match (bary.x > 0.0, bary.y > 0.0, bary.z > 0.0) {
                 // Inside the triangle: no neighbour of a smooth surface is closer.
                 (true, true, true) => None,
@@ -49,7 +49,7 @@ impl TargetSurface {
     /// The triangle across edge `k` of `t`, if its closest point is strictly
     /// closer than `d2`.
     fn across(&self, t: u32, k: usize, q: Vec3, d2: f32) -> Option<(f32, u32, Vec3, Vec3)> {
-        let n = self.across_edge[t as usize][k];
+        let n = self.geometry.across_edge[t as usize][k];
         if n == u32::MAX {
             return None;
         }
@@ -64,14 +64,14 @@ impl TargetSurface {
     /// (Ericson's vertex-region test), so most calls test no triangle; else
     /// the two triangles of the edge it leans along most are tested.
     fn around(&self, t: u32, v: u32, q: Vec3, d2: f32) -> Option<(f32, u32, Vec3, Vec3)> {
-        let pv = self.positions[v as usize];
+        let pv = self.geometry.positions[v as usize];
         let r = q - pv;
-        let neighbors = csr_row(&self.neighbor_offsets, &self.neighbors, v);
+        let neighbors = csr_row(&self.geometry.neighbor_offsets, &self.geometry.neighbors, v);
         // Follow the edge the query leans along most (largest cosine): the
         // closest point moves onto it or into one of its two triangles.
         let mut lean: Option<(f32, u32)> = None;
         for &u in neighbors {
-            let e = self.positions[u as usize] - pv;
+            let e = self.geometry.positions[u as usize] - pv;
             let along = r.dot(e);
             if along <= 0.0 {
                 continue;
@@ -84,7 +84,7 @@ impl TargetSurface {
         let (_, u) = lean?;
         let mut next: Option<(f32, u32, Vec3, Vec3)> = None;
         for &n in self.triangles_around(v) {
-            if n == t || !self.triangles[n as usize].contains(&u) {
+            if n == t || !self.geometry.triangles[n as usize].contains(&u) {
                 continue;
             }
             let (c, bary) = self.closest_on_triangle(n, q);
@@ -106,10 +106,10 @@ impl TargetSurface {
         c: Vec3,
         bary: Vec3,
     ) -> ClosestHit {
-        let [a, b, cc] = self.triangles[triangle as usize];
-        let local_n = (self.normals[a as usize] * bary.x
-            + self.normals[b as usize] * bary.y
-            + self.normals[cc as usize] * bary.z)
+        let [a, b, cc] = self.geometry.triangles[triangle as usize];
+        let local_n = (self.geometry.normals[a as usize] * bary.x
+            + self.geometry.normals[b as usize] * bary.y
+            + self.geometry.normals[cc as usize] * bary.z)
             .try_normalize()
             .unwrap_or(Vec3::Y);
         let (normal, point) = if self.identity {
@@ -139,7 +139,7 @@ impl TargetSurface {
     /// region, for a few loads instead of a triangle test: what later
     /// iterations of a frame ask for, the vertex having moved a little.
     pub fn on_feature(&self, query: Vec3, t: u32, bary: Vec3, plane: Vec3) -> Vec3 {
-        let [a, b, c] = self.triangles[t as usize];
+        let [a, b, c] = self.geometry.triangles[t as usize];
         match (bary.x > 0.0, bary.y > 0.0, bary.z > 0.0) {
             (true, true, true) => {
                 let on = self.point_at(t, bary);

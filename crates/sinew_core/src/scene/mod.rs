@@ -310,24 +310,40 @@ impl Scene {
                     .transpose()
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let muscles = self
-            .muscles
-            .iter()
+        Ok((bones, self.load_muscle_meshes(base_dir)?))
+    }
+
+    /// Loads every muscle mesh (paths relative to `base_dir`).
+    fn load_muscle_meshes(&self, base_dir: &Path) -> Result<Vec<SurfaceMesh>, SceneError> {
+        (self.muscles.iter())
             .map(|m| muscle_mesh(&m.name, &m.mesh, base_dir))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok((bones, muscles))
+            .collect()
     }
 
     /// Builds a [`Solver`] from the scene; mesh paths are relative to `base_dir`.
     pub fn instantiate(&self, base_dir: &Path) -> Result<Solver, SceneError> {
         self.validate()?;
-        let (bone_meshes, muscle_meshes) = self.load_meshes(base_dir)?;
+        let muscle_meshes = self.load_muscle_meshes(base_dir)?;
         let mut solver = Solver::new(self.settings.clone())?;
         if let Some(skeleton) = &self.skeleton {
             solver.set_skeleton(skeleton.compile()?);
         }
-        for (b, mesh) in self.bones.iter().zip(&bone_meshes) {
-            let index = solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref());
+        let first_bone = solver.bones().len();
+        for (i, b) in self.bones.iter().enumerate() {
+            // A bone of an earlier bone's shape (its copy in a crowd) shares
+            // that bone's geometry; any other is loaded, and dropped once
+            // its target is built.
+            let like = (b.shape.as_ref())
+                .and_then(|s| (self.bones[..i].iter()).position(|o| o.shape.as_ref() == Some(s)));
+            let index = match like {
+                Some(j) => solver.add_bone_like(b.name.clone(), b.track.clone(), first_bone + j),
+                None => {
+                    let mesh = (b.shape.as_ref())
+                        .map(|s| bone_mesh(&b.name, s, base_dir))
+                        .transpose()?;
+                    solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref())
+                }
+            };
             if let Some(body) = &b.body {
                 let found = solver.skeleton().and_then(|r| r.body_index(body));
                 let body = found.ok_or_else(|| SceneError::UnknownReference {

@@ -187,6 +187,9 @@ impl Solver {
 
     /// Adds a bone posed by `track` (or by the host when the track is empty), with
     /// an optional mesh (local frame) that muscles can target. Returns its index.
+    /// A mesh the same, to the bit, as an earlier bone's shares that bone's
+    /// target geometry ([`TargetSurface::sharing_geometry`]): a crowd holds
+    /// one copy of each bone however many bodies it has.
     pub fn add_bone(
         &mut self,
         name: impl Into<String>,
@@ -194,15 +197,47 @@ impl Solver {
         mesh: Option<&SurfaceMesh>,
     ) -> usize {
         let name = name.into();
+        let source = TargetSource::Bone(self.bones.len());
+        let target = mesh.map(|m| {
+            let same = (self.targets.iter()).find(|t| t.is_rigid_of(&m.positions, &m.triangles));
+            match same {
+                Some(same) => same.sharing_geometry(name.clone(), source),
+                None => TargetSurface::new(
+                    name.clone(),
+                    source,
+                    m.positions.clone(),
+                    m.triangles.clone(),
+                ),
+            }
+        });
+        self.push_bone(name, track, target)
+    }
+
+    /// Adds a bone of the same mesh as bone `like` (a copy of it in a
+    /// crowd), sharing its target geometry without loading the mesh again.
+    /// Returns its index. `like` must be a bone already added.
+    pub(crate) fn add_bone_like(
+        &mut self,
+        name: String,
+        track: TransformTrack,
+        like: usize,
+    ) -> usize {
+        let source = TargetSource::Bone(self.bones.len());
+        let target = (self.bones[like].target)
+            .map(|t| self.targets[t].sharing_geometry(name.clone(), source));
+        self.push_bone(name, track, target)
+    }
+
+    /// Adds a bone posed by `track`, with its target (if any) posed too.
+    fn push_bone(
+        &mut self,
+        name: String,
+        track: TransformTrack,
+        target: Option<TargetSurface>,
+    ) -> usize {
         let index = self.bones.len();
         let pose = track.sample(self.time);
-        let target = mesh.map(|m| {
-            let mut t = TargetSurface::new(
-                name.clone(),
-                TargetSource::Bone(index),
-                m.positions.clone(),
-                m.triangles.clone(),
-            );
+        let target = target.map(|mut t| {
             t.set_transform(pose);
             self.targets.push(t);
             self.targets.len() - 1
@@ -575,5 +610,7 @@ impl Solver {
 
 #[cfg(test)]
 mod determinism_tests;
+#[cfg(test)]
+mod shared_geometry_tests;
 #[cfg(test)]
 mod tests;

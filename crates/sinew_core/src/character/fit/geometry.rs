@@ -58,7 +58,7 @@ impl AnatomyFit {
         let (pose, unit) = (bone.transform, solver.settings.length_unit);
         Some(
             target
-                .positions
+                .positions()
                 .iter()
                 .map(move |&p| fit.apply(pose.transform_point3(p) / unit)),
         )

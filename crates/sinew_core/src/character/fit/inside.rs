@@ -113,7 +113,7 @@ impl SkinVolume {
                 |(lo, hi), &p| (lo.min(p), hi.max(p)),
             );
             let reach = Vec3::splat(options.margin + 0.01);
-            let near: Vec<Vec3> = (self.surface.positions.iter().copied())
+            let near: Vec<Vec3> = (self.surface.positions().iter().copied())
                 .filter(|s| s.cmpge(lo - reach).all() && s.cmple(hi + reach).all())
                 .collect();
             for _ in 0..3 {
@@ -207,7 +207,7 @@ fn below_skin_vertices(
             continue;
         }
         let step = -short * hit.normal;
-        for &corner in &surface.triangles[hit.triangle as usize] {
+        for &corner in &surface.triangles()[hit.triangle as usize] {
             let slot = &mut moves[corner as usize];
             if slot.is_none_or(|m| m.length_squared() < step.length_squared()) {
                 *slot = Some(step);
@@ -317,7 +317,7 @@ impl FittedGeometry {
             let Some(target) = solver.bones()[*b].target else {
                 continue;
             };
-            let triangles = &solver.targets()[target].triangles;
+            let triangles = solver.targets()[target].triangles();
             report[1].add(&skin.pull_inside(points, triangles, bones, None));
             let offset = all_points.len() as u32;
             all_triangles.extend(triangles.iter().map(|t| t.map(|i| i + offset)));

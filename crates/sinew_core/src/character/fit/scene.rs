@@ -141,7 +141,7 @@ impl AnatomyFit {
                 let target = solver.bones()[b].target.expect("a fitted bone has a mesh");
                 let local: Vec<Vec3> = points.iter().map(|&p| p - origin).collect();
                 let mut obj = ObjObjects::default();
-                let triangles = &solver.targets()[target].triangles;
+                let triangles = solver.targets()[target].triangles();
                 obj.push(
                     &spec.name,
                     &local,
