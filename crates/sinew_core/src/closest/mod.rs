@@ -148,7 +148,7 @@ pub struct TargetSurface {
 }
 
 /// What targets of one mesh share: everything a closest-point query reads
-/// but the frame and the slack. A rigid target's never changes after it is
+/// but the frame, the slack and a muscle's inverse masses. A rigid target's never changes after it is
 /// built; a deforming target's positions, normals and BVH fit change as its
 /// muscle publishes them.
 #[derive(Clone)]
@@ -349,10 +349,12 @@ impl TargetSurface {
         &self.geometry.triangles
     }
 
-    /// A rigid target of `name` and `source` on this target's geometry,
-    /// shared rather than copied (its frame starts as this target's).
-    /// Building one from the same mesh would give the same queries, bit for
-    /// bit: the geometry is a function of the positions and triangles alone.
+    /// A target of `name` and `source` on this target's geometry, shared
+    /// rather than copied (its frame starts as this target's): a bone of the
+    /// same mesh. Building one from the mesh would give the same queries, bit
+    /// for bit: the geometry is a function of the positions and triangles
+    /// alone. (A muscle target made this way gets a copy of its own when it
+    /// first publishes.)
     pub fn sharing_geometry(&self, name: impl Into<String>, source: TargetSource) -> Self {
         Self {
             name: name.into(),
@@ -364,8 +366,8 @@ impl TargetSurface {
     }
 
     /// Whether this is a rigid target built from exactly these local
-    /// positions (to the bit) and triangles, whose geometry a bone of that mesh can
-    /// share ([`TargetSurface::sharing_geometry`]).
+    /// positions (to the bit) and triangles, whose geometry a bone of that
+    /// mesh can share ([`TargetSurface::sharing_geometry`]).
     pub fn is_rigid_of(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> bool {
         let bits = |p: &Vec3| p.to_array().map(f32::to_bits);
         !self.is_deforming()
