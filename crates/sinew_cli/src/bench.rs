@@ -420,6 +420,15 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
         },
         ns / reference
     );
+    // What a crowd costs in memory: the largest solver a run built (runs
+    // load one at a time), plus what the process holds besides.
+    match crate::soak::memory_kib() {
+        Some((_, peak)) => println!(
+            "memory: {:.1} MiB maximum resident (the process)",
+            peak as f64 / 1024.0
+        ),
+        None => println!("memory: not measured (no /proc/self/status)"),
+    }
     if args.timer_overhead {
         let off = median(untimed);
         println!(

@@ -40,7 +40,7 @@ pub struct SoakArgs {
 
 /// The process's resident memory and its peak (`VmRSS`, `VmHWM` in
 /// `/proc/self/status`), in KiB; `None` where the system has no such file.
-fn memory_kib() -> Option<(u64, u64)> {
+pub(crate) fn memory_kib() -> Option<(u64, u64)> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let field = |name: &str| {
         status
