@@ -70,7 +70,9 @@ impl BonePose {
 }
 
 /// A bone's mesh as a collision/sliding target (local frame, with a BVH).
-/// The plug-in moves it with the bone every substep.
+/// The plug-in moves it with the bone every substep. Cloning one shares its
+/// geometry (the BVH, adjacency and side data are built once): load a bone
+/// once and give each character's bone entity a clone.
 #[derive(Component, Clone, Debug)]
 pub struct BoneTarget(pub TargetSurface);
 

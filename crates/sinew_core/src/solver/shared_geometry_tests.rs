@@ -125,3 +125,34 @@ fn a_bone_of_an_equal_mesh_shares_its_geometry() {
     let (near_a, near_b) = (target(a).lower_bound(probe), target(b).lower_bound(probe));
     assert!(near_b < 0.1 && near_a > 0.9, "{near_a} {near_b}");
 }
+
+/// A clone of a target shares its geometry (a bone given to many
+/// characters); a muscle target's clone gets its own copy when one of the
+/// two publishes, and the other keeps what it had.
+#[test]
+fn a_clone_shares_until_one_of_two_muscle_targets_publishes() {
+    use crate::mesh::primitives::MeshGenerator;
+    let mesh = MeshGenerator::Ellipsoid {
+        center: Vec3::ZERO,
+        radii: Vec3::new(0.05, 0.02, 0.025),
+        segments: 16,
+        stacks: 12,
+    }
+    .build("muscle")
+    .unwrap();
+    let source = TargetSource::Muscle(0);
+    let original = TargetSurface::new("muscle", source, mesh.positions, mesh.triangles);
+    let mut copy = original.clone();
+    assert!(copy.shares_geometry_with(&original));
+    let moved: Vec<Vec3> = (original.positions().iter()).map(|p| *p * 1.1).collect();
+    copy.publish(&moved);
+    assert!(!copy.shares_geometry_with(&original));
+    assert_eq!(copy.positions(), moved.as_slice());
+    assert!(original.positions().iter().zip(&moved).all(|(a, b)| a != b));
+    let mut staged = moved.iter().map(|p| *p * 1.1).collect::<Vec<_>>();
+    let mut again = copy.clone();
+    let slack = again.moved_squared(&staged);
+    again.publish_staged(&mut staged, slack);
+    assert!(!again.shares_geometry_with(&copy));
+    assert_eq!(copy.positions(), moved.as_slice());
+}
