@@ -359,3 +359,39 @@ fn a_failed_build_is_reported_on_the_entity() {
     assert!(failed.0.to_string().contains("file.obj"), "{}", failed.0);
     assert!(app.world().get::<MuscleState>(e).is_none());
 }
+
+/// One scene spawned twice (two characters from one asset): each spawn's
+/// bone reads the same bone geometry — a clone of the scene's target, not
+/// a copy — and the two step as one another, bit for bit, each on its own
+/// bones.
+#[test]
+fn a_scene_spawned_twice_shares_its_bones_geometry() {
+    let path = asset("scenes/t3.ron");
+    let scene = Arc::new(SinewScene::load(&path).unwrap());
+    let mut app = app();
+    let roots: Vec<Entity> = (0..2)
+        .map(|_| {
+            (app.world_mut())
+                .spawn(SinewSceneRoot::Built(scene.clone()))
+                .id()
+        })
+        .collect();
+    app.update();
+    let [first, second] = [0, 1].map(|k| spawned(&app, roots[k]));
+    let target = |bone: Entity| app.world().get::<BoneTarget>(bone).map(|t| &t.0);
+    let mut shared = 0;
+    for (&a, &b) in first.bones.iter().zip(&second.bones) {
+        assert_ne!(a, b);
+        if let (Some(ta), Some(tb)) = (target(a), target(b)) {
+            assert!(ta.shares_geometry_with(tb), "{}", ta.name);
+            shared += 1;
+        }
+    }
+    assert!(shared >= 3, "{shared} bones with a mesh");
+    for _ in 0..5 {
+        app.update();
+    }
+    for (&a, &b) in first.muscles.iter().zip(&second.muscles) {
+        assert!(positions(&app, a) == positions(&app, b), "muscle {a}");
+    }
+}

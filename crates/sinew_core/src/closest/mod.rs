@@ -120,11 +120,12 @@ impl TargetSet for [&TargetSurface] {
 
 /// Triangle geometry of one target, with a BVH.
 ///
-/// Cloning a target is cheap: its geometry ([`SurfaceGeometry`]) is shared
-/// behind an [`Arc`] and copied only when a clone of a deforming target
-/// publishes new positions (copy on write). The solver gives every bone
-/// whose mesh is the same, in its local frame, the one geometry (a crowd's
-/// copies of a body, [`crate::scene::Scene::crowd`]).
+/// Cloning a target is cheap: its geometry (positions, normals, triangles,
+/// BVH, adjacency and side data) is shared behind an [`Arc`] and copied
+/// only when a clone of a deforming target publishes new positions (copy
+/// on write). The solver gives every bone whose mesh is the same, in its
+/// local frame, the one geometry (a crowd's copies of a body,
+/// [`crate::scene::Scene::crowd`]).
 #[derive(Clone)]
 pub struct TargetSurface {
     /// Name (bone or muscle).
