@@ -328,15 +328,17 @@ impl Scene {
         if let Some(skeleton) = &self.skeleton {
             solver.set_skeleton(skeleton.compile()?);
         }
-        let first_bone = solver.bones().len();
-        for (i, b) in self.bones.iter().enumerate() {
+        // The first bone of each shape, by the shape's text (exact: floats
+        // print to the bit), so a crowd of any size finds them in one pass.
+        let mut first_of_shape = std::collections::HashMap::new();
+        for b in &self.bones {
             // A bone of an earlier bone's shape (its copy in a crowd) shares
             // that bone's geometry; any other is loaded, and dropped once
             // its target is built.
-            let like = (b.shape.as_ref())
-                .and_then(|s| (self.bones[..i].iter()).position(|o| o.shape.as_ref() == Some(s)));
+            let shape = b.shape.as_ref().map(|s| format!("{s:?}"));
+            let like = shape.as_ref().and_then(|s| first_of_shape.get(s).copied());
             let index = match like {
-                Some(j) => solver.add_bone_like(b.name.clone(), b.track.clone(), first_bone + j),
+                Some(j) => solver.add_bone_like(b.name.clone(), b.track.clone(), j),
                 None => {
                     let mesh = (b.shape.as_ref())
                         .map(|s| bone_mesh(&b.name, s, base_dir))
@@ -344,6 +346,9 @@ impl Scene {
                     solver.add_bone(b.name.clone(), b.track.clone(), mesh.as_ref())
                 }
             };
+            if let Some(shape) = shape {
+                first_of_shape.entry(shape).or_insert(index);
+            }
             if let Some(body) = &b.body {
                 let found = solver.skeleton().and_then(|r| r.body_index(body));
                 let body = found.ok_or_else(|| SceneError::UnknownReference {
