@@ -44,7 +44,7 @@ pub use point::PointBatch;
 pub use runs::{OPEN_RUNS, RUN};
 pub(crate) use sliding::outside_at_rest;
 pub use sliding::{SlidingBatch, SlidingMode};
-pub use volume::{VolumeConstraint, VolumeParams};
+pub use volume::{VolumeConstraint, VolumeParams, VolumeProjection};
 
 use glam::Vec3;
 

@@ -5,6 +5,7 @@
 //! validated settings, so a setting means the same in all of them.
 
 use super::settings::{SolverMethod, SolverSettings, SweepSchedule};
+use crate::constraints::VolumeProjection;
 use crate::muscle::ConstraintKind;
 use crate::muscle::Muscle;
 use glam::Vec3;
@@ -276,7 +277,23 @@ impl IterationParams {
             true => 1,
             false => self.substep.frame.bone_contact_interval,
         };
-        self.index.is_multiple_of(every) || self.index + 1 == self.substep.frame.iterations_of(m)
+        self.index.is_multiple_of(every) || self.last_for(m)
+    }
+
+    /// Whether this is `m`'s last iteration of the substep (its own count
+    /// reached after it).
+    pub fn last_for(&self, m: &Muscle) -> bool {
+        self.index + 1 == self.substep.frame.iterations_of(m)
+    }
+
+    /// How far `m`'s Volume is projected this iteration: one linearised step
+    /// while iterations follow, to convergence in `m`'s last (see
+    /// [`VolumeProjection`]).
+    pub fn volume_projection(&self, m: &Muscle) -> VolumeProjection {
+        match self.last_for(m) {
+            true => VolumeProjection::Converge,
+            false => VolumeProjection::Step,
+        }
     }
 
     /// Closest data's schedule for this iteration.

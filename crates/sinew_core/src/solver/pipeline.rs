@@ -35,7 +35,7 @@ use super::sweep::{self, SweepPlan};
 use super::timings::TaskSplit;
 use super::workspace::{MuscleWorkspace, SwitchedOn};
 use crate::closest::{TargetSet, TargetSurface};
-use crate::constraints::{BatchFnMut, ConstraintBatch};
+use crate::constraints::{BatchFnMut, ConstraintBatch, VolumeProjection};
 use crate::muscle::ConstraintKind;
 use crate::muscle::{LineShape, Muscle};
 use glam::{Affine3A, Vec3};
@@ -158,7 +158,11 @@ pub fn sweep(m: &mut Muscle, ws: &mut MuscleWorkspace, p: &IterationParams) {
             let plan = plan_for(m, ws, p);
             sweep::sweep_muscle(m, plan.sweep(), inv_h2, split);
         }
-        (_, None) => gauss_seidel_over(m, split_volume(order).0, inv_h2, Some(&ws.switched_on)),
+        (_, None) => {
+            let on = Some(&ws.switched_on);
+            let volume = p.volume_projection(m);
+            gauss_seidel_over(m, split_volume(order).0, inv_h2, on, volume)
+        }
     }
 }
 
@@ -223,14 +227,14 @@ pub fn finish<T: TargetSet + Sync + ?Sized>(
             plan.project_tail(m, inv_h2, omega, split);
         }
         if !trailing && order.contains(&ConstraintKind::Volume) {
-            project_volume(m, inv_h2, split);
+            project_volume(m, p, inv_h2, split);
         }
     }
     if p.contacts_bones(m) {
         bone_contacts(m, ws, targets, p.first_of_substep(), split);
     }
     if trailing {
-        project_volume(m, inv_h2, split);
+        project_volume(m, p, inv_h2, split);
     }
 }
 
@@ -337,11 +341,13 @@ fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
     }
 }
 
-/// Projects the Volume constraint of `m`, if it has one (a large mesh's
-/// evaluation as a parallel reduction when `split`, same result).
-fn project_volume(m: &mut Muscle, inv_h2: f32, split: bool) {
+/// Projects the Volume constraint of `m`, if it has one, as far as
+/// iteration `p` asks (a large mesh's evaluation as a parallel reduction
+/// when `split`, same result).
+fn project_volume(m: &mut Muscle, p: &IterationParams, inv_h2: f32, split: bool) {
+    let how = p.volume_projection(m);
     if let Some(v) = &mut m.constraints.volume {
-        v.solve_with(&mut m.p, &m.w, inv_h2, split);
+        v.solve_with(&mut m.p, &m.w, inv_h2, split, how);
     }
 }
 
@@ -368,20 +374,22 @@ impl BatchFnMut for Solve<'_> {
 }
 
 /// Projects every constraint of `m` once, type by type in `order` (BE6,
-/// Gauss–Seidel).
+/// Gauss–Seidel; the Volume to convergence).
 pub fn gauss_seidel(m: &mut Muscle, order: &[ConstraintKind], inv_h2: f32) {
-    gauss_seidel_over(m, order, inv_h2, None);
+    gauss_seidel_over(m, order, inv_h2, None, VolumeProjection::Converge);
 }
 
 /// [`gauss_seidel`] visiting only the Soft, Hard and Sliding constraints
 /// listed in `on` (those that are on: the others are no-ops, and the
 /// anatomy scenes have every Soft and Hard off, T7 2 × 20 448 of them,
-/// and three Sliding vertices in four out of every contact band).
+/// and three Sliding vertices in four out of every contact band), and
+/// the Volume as far as `volume` says.
 pub(crate) fn gauss_seidel_over(
     m: &mut Muscle,
     order: &[ConstraintKind],
     inv_h2: f32,
     on: Option<&SwitchedOn>,
+    volume: VolumeProjection,
 ) {
     let (p, w, c) = (&mut m.p, &m.w, &mut m.constraints);
     for &kind in order {
@@ -390,7 +398,7 @@ pub(crate) fn gauss_seidel_over(
         if c.with_batch_mut(kind, solve).is_none()
             && let Some(v) = &mut c.volume
         {
-            v.solve(p, w, inv_h2);
+            v.solve_with(p, w, inv_h2, false, volume);
         }
     }
 }

@@ -596,3 +596,41 @@ fn a_surface_layer_keeps_a_volume_from_the_middle_of_the_order() {
     };
     assert_ne!(run(true), run(false));
 }
+
+/// A muscle's Volume is one linearised step in each iteration of a
+/// substep but the muscle's last, which goes on to the target: on the
+/// scene's count and on a muscle's own smaller or larger one.
+#[test]
+fn a_muscles_volume_converges_in_its_last_iteration_only() {
+    use crate::constraints::VolumeProjection;
+    use crate::solver::params::{FrameParams, Parallelism};
+    let settings = SolverSettings {
+        iterations: 4,
+        substeps: 2,
+        ..SolverSettings::default()
+    };
+    let solver = builtin("P1")
+        .unwrap()
+        .instantiate(std::path::Path::new("."))
+        .unwrap();
+    let mut m = solver.muscles()[0].clone();
+    let frame = FrameParams::new(&settings, 0, Parallelism::default());
+    let mut converging = |own: Option<u32>| {
+        m.params.iterations = own;
+        let count = frame.iterations_for([&m]);
+        let mut at = Vec::new();
+        for s in 0..settings.substeps {
+            let sub = frame.substep(s);
+            for it in (0..count).map(|i| sub.iteration(i, count)) {
+                if it.runs(&m) && it.volume_projection(&m) == VolumeProjection::Converge {
+                    at.push((s, it.index));
+                }
+            }
+        }
+        at
+    };
+    assert_eq!(converging(None), [(0, 3), (1, 3)]);
+    assert_eq!(converging(Some(2)), [(0, 1), (1, 1)]);
+    assert_eq!(converging(Some(6)), [(0, 5), (1, 5)]);
+    assert_eq!(converging(Some(1)), [(0, 0), (1, 0)]);
+}

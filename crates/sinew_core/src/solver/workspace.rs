@@ -277,6 +277,7 @@ mod tests {
     /// a third of each switched off.
     #[test]
     fn gauss_seidel_over_the_connections_that_are_on_is_the_whole_pass() {
+        use crate::constraints::VolumeProjection;
         use crate::solver::pipeline::{gauss_seidel, gauss_seidel_over};
         let mut solver = crate::scene::builtin("P3")
             .unwrap()
@@ -308,7 +309,13 @@ mod tests {
         let order = ConstraintKind::CANONICAL_ORDER;
         let (mut all, mut listed) = (m.clone(), m);
         gauss_seidel(&mut all, &order, 3600.0);
-        gauss_seidel_over(&mut listed, &order, 3600.0, Some(&on));
+        gauss_seidel_over(
+            &mut listed,
+            &order,
+            3600.0,
+            Some(&on),
+            VolumeProjection::Converge,
+        );
         assert_eq!(all.p, listed.p);
         let (a, l) = (&all.constraints, &listed.constraints);
         assert_eq!(a.soft.lambda, l.soft.lambda);
