@@ -256,17 +256,35 @@ impl ConstraintBatch for DistanceBatch {
         inv_dt2: f32,
     ) -> Option<Correction> {
         let alpha = self.compliance * inv_dt2;
-        let d = pa - pb;
-        let len = d.length();
-        if len < 1e-9 {
-            return None;
-        }
-        let dl = delta_lambda(len - self.rest[i], lambda, wa + wb, alpha);
-        let n = d * (dl / len);
-        let mut to_a = pa;
-        to_a += wa * n;
-        let mut to_b = pb;
-        to_b -= wb * n;
+        let (dl, to_a, to_b) = project_pair([pa, pb], [wa, wb], self.rest[i], lambda, alpha)?;
         Some(Correction::two(dl, to_a, to_b))
     }
+}
+
+/// The projection of one distance constraint of rest length `rest`,
+/// multiplier `lambda` and compliance `alpha` (÷ h²) on particles at `at`
+/// with inverse masses `w`: the multiplier increment and the two new
+/// positions, or `None` for coincident particles (no direction). The
+/// kernel of [`DistanceBatch::correction_of`] and of the Gauss–Seidel pass
+/// in runs.
+#[inline(always)]
+pub(super) fn project_pair(
+    [pa, pb]: [Vec3; 2],
+    [wa, wb]: [f32; 2],
+    rest: f32,
+    lambda: f32,
+    alpha: f32,
+) -> Option<(f32, Vec3, Vec3)> {
+    let d = pa - pb;
+    let len = d.length();
+    if len < 1e-9 {
+        return None;
+    }
+    let dl = delta_lambda(len - rest, lambda, wa + wb, alpha);
+    let n = d * (dl / len);
+    let mut to_a = pa;
+    to_a += wa * n;
+    let mut to_b = pb;
+    to_b -= wb * n;
+    Some((dl, to_a, to_b))
 }
