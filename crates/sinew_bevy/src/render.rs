@@ -87,7 +87,10 @@ pub(crate) fn register(app: &mut App) {
 /// mesh asset is loaded, the entity gets a [`BoneTarget`] of that mesh (in
 /// the entity's own space, moved with its transform) and, if it has none, a
 /// [`SinewBone`]. Name it in a muscle's targets
-/// ([`crate::build::MuscleBuilder::target`]). A mesh sinew cannot use is
+/// ([`crate::build::MuscleBuilder::target`]). Entities of one mesh asset (a
+/// crowd's bones) share one geometry: the target is built once per asset
+/// and the others share it ([`TargetSurface::sharing_geometry`]), as the
+/// bones of a scene spawned several times do. A mesh sinew cannot use is
 /// reported in [`crate::events::SinewLog`] and the marker removed.
 #[derive(Component, Clone, Copy, Debug, Default, Reflect)]
 #[reflect(Component, Default)]
@@ -102,15 +105,25 @@ type PendingTarget = (
     Has<SinewBone>,
 );
 
+/// The bone targets [`TargetFromMesh`] built, by mesh asset, for the next
+/// entity of the same mesh to share. An entry is shared only while the
+/// asset's surface is the one it was built from, to the bit (a mesh edited
+/// in place gets a target of its own, which replaces the entry), and is
+/// dropped once its asset is gone.
+#[derive(Default)]
+struct TargetsByMesh(bevy::platform::collections::HashMap<AssetId<Mesh>, TargetSurface>);
+
 fn targets_from_meshes(
     mut commands: Commands,
     pending: Query<PendingTarget, With<TargetFromMesh>>,
     meshes: Option<Res<Assets<Mesh>>>,
+    mut built: Local<TargetsByMesh>,
     mut log: ResMut<crate::events::SinewLog>,
 ) {
     let Some(meshes) = meshes else {
         return;
     };
+    built.0.retain(|&id, _| meshes.contains(id));
     for (entity, handle, name, is_bone) in &pending {
         let Some(mesh) = meshes.get(&handle.0) else {
             continue; // not loaded yet
@@ -120,13 +133,19 @@ fn targets_from_meshes(
         e.remove::<TargetFromMesh>();
         match surface_from_mesh(&name, mesh) {
             Ok(surface) => {
-                let triangles = surface.triangles.clone();
-                let target = TargetSurface::new(
-                    name.clone(),
-                    TargetSource::Bone(0),
-                    surface.positions,
-                    triangles,
-                );
+                let source = TargetSource::Bone(0);
+                let target = match built.0.get(&handle.id()) {
+                    Some(first) if first.is_rigid_of(&surface.positions, &surface.triangles) => {
+                        first.sharing_geometry(name.clone(), source)
+                    }
+                    _ => {
+                        let triangles = surface.triangles.clone();
+                        let target =
+                            TargetSurface::new(name.clone(), source, surface.positions, triangles);
+                        built.0.insert(handle.id(), target.clone());
+                        target
+                    }
+                };
                 e.insert(BoneTarget(target));
                 if !is_bone {
                     e.insert(SinewBone::new(name));

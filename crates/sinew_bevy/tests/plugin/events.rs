@@ -1,7 +1,8 @@
 //! The plug-in tells the app what happened: a muscle built, a build that
 //! failed (with a typed error), settings rejected — as entity events for
 //! observers, as messages, and in the panel's log; what the panel's Reset
-//! does to a hand-built muscle; and a mesh entity made a bone.
+//! does to a hand-built muscle; and a mesh entity made a bone (entities
+//! of one mesh sharing one geometry).
 
 use crate::common;
 
@@ -275,4 +276,64 @@ fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
     let sliding = &state.muscle.constraints.sliding;
     let touching = sliding.connected.iter().filter(|&&c| c).count();
     assert!(touching > 0, "no oval vertex slides on the ball");
+}
+
+/// Entities of one mesh asset share one bone geometry, and one of another
+/// mesh does not. A mesh edited in place gets a target of its own (its new
+/// surface), which later entities of that mesh share.
+#[cfg(feature = "render")]
+#[test]
+fn mesh_entities_of_one_asset_share_one_bone_geometry() {
+    use bevy::mesh::VertexAttributeValues;
+    let mut app = app();
+    app.add_plugins(bevy::asset::AssetPlugin::default())
+        .init_asset::<Mesh>();
+    let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+    let ball = meshes.add(Sphere::new(0.02).mesh().ico(3).unwrap());
+    let cube = meshes.add(Cuboid::new(0.02, 0.03, 0.04).mesh().build());
+    let spawn = |app: &mut App, mesh: &Handle<Mesh>, name: &str| {
+        let bone = (Name::new(name.to_string()), Mesh3d(mesh.clone()));
+        app.world_mut()
+            .spawn((bone, TargetFromMesh, Transform::default()))
+            .id()
+    };
+    let target = |app: &App, e: Entity| app.world().get::<BoneTarget>(e).map(|t| t.0.clone());
+    let built = |app: &mut App, entities: &[Entity]| {
+        common::update_until(app, |app| {
+            entities.iter().all(|&e| target(app, e).is_some())
+        });
+        let targets = entities.iter().map(|&e| target(app, e).unwrap());
+        targets.collect::<Vec<_>>()
+    };
+    let entities = [
+        spawn(&mut app, &ball, "a"),
+        spawn(&mut app, &ball, "b"),
+        spawn(&mut app, &cube, "c"),
+    ];
+    let [a, b, c] = &built(&mut app, &entities)[..] else {
+        unreachable!()
+    };
+    assert!(a.shares_geometry_with(b));
+    assert!(!a.shares_geometry_with(c));
+    assert_eq!((a.name.as_str(), b.name.as_str()), ("a", "b"));
+    // The ball twice as large, in place.
+    {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        let mut mesh = meshes.get_mut(&ball).unwrap();
+        let Some(VertexAttributeValues::Float32x3(positions)) =
+            mesh.attribute_mut(Mesh::ATTRIBUTE_POSITION)
+        else {
+            panic!("the ball has positions");
+        };
+        positions.iter_mut().flatten().for_each(|x| *x *= 2.0);
+    }
+    let entities = [spawn(&mut app, &ball, "d"), spawn(&mut app, &ball, "e")];
+    let [d, e] = &built(&mut app, &entities)[..] else {
+        unreachable!()
+    };
+    assert!(!d.shares_geometry_with(a));
+    assert!(d.shares_geometry_with(e));
+    let (old, new) = (a.positions(), d.positions());
+    assert_eq!(old.len(), new.len());
+    assert!(old.iter().zip(new).all(|(o, n)| *n == 2.0 * *o));
 }
