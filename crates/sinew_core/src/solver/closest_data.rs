@@ -51,6 +51,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     };
     let run = SlidingRun::of(
         &mut c.sliding,
+        &ws.switched_on.sliding_connected,
         &mut ws.candidate_warm,
         (&mut ws.bone_cells, ws.bone_ways),
         &mut ws.side_memo,
@@ -185,6 +186,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
         let SlidingRun {
             particle,
             connected,
+            first: run_start,
             point,
             target_w,
             normal,
@@ -205,10 +207,8 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             candidate_outside,
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
-        for i in 0..particle.len() {
-            if !connected[i] {
-                continue;
-            }
+        for &k in connected {
+            let i = k as usize - run_start;
             let v = particle[i].index();
             let q = self.p[v];
             let first = target[i].get().unwrap_or(usize::MAX);

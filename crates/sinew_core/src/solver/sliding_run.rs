@@ -12,7 +12,11 @@ use glam::Vec3;
 /// run, and the workspace's warm cells and side memos for it.
 pub(super) struct SlidingRun<'a> {
     pub(super) particle: &'a [ParticleId],
-    pub(super) connected: &'a [bool],
+    /// The run's constraints whose vertex connects, ascending, as indices
+    /// into the batch (the run's own index plus `first`).
+    pub(super) connected: &'a [u32],
+    /// The batch index of the run's first constraint.
+    pub(super) first: usize,
     pub(super) point: &'a mut [Vec3],
     pub(super) target_w: &'a mut [f32],
     pub(super) normal: &'a mut [Vec3],
@@ -46,18 +50,21 @@ pub(super) struct SlidingRun<'a> {
 }
 
 impl<'a> SlidingRun<'a> {
-    /// The whole batch, with the workspace's cells for it
+    /// The whole batch, with its `connected` constraints listed
+    /// (`SwitchedOn::sliding_connected`) and the workspace's cells for it
     /// (`MuscleWorkspace::candidate_warm`, `bone_cells` of `bone_ways`
     /// each, `side_memo` sized to the batch).
     pub(super) fn of(
         s: &'a mut SlidingBatch,
+        connected: &'a [u32],
         warm: &'a mut [u32],
         (bone_cells, bone_ways): (&'a mut [BoneCell], usize),
         side_memo: &'a mut [SideMemo],
     ) -> Self {
         Self {
             particle: &s.particle,
-            connected: &s.connected,
+            connected,
+            first: 0,
             point: &mut s.point,
             target_w: &mut s.target_w,
             normal: &mut s.normal,
@@ -89,7 +96,8 @@ impl<'a> SlidingRun<'a> {
     /// The first `at` constraints and the rest.
     fn split_at(self, at: usize) -> (Self, Self) {
         let (particle, particle_b) = self.particle.split_at(at);
-        let (connected, connected_b) = self.connected.split_at(at);
+        let cut = (self.connected).partition_point(|&i| (i as usize) < self.first + at);
+        let (connected, connected_b) = self.connected.split_at(cut);
         let (point, point_b) = self.point.split_at_mut(at);
         let (target_w, target_w_b) = self.target_w.split_at_mut(at);
         let (normal, normal_b) = self.normal.split_at_mut(at);
@@ -111,6 +119,7 @@ impl<'a> SlidingRun<'a> {
             Self {
                 particle,
                 connected,
+                first: self.first,
                 point,
                 target_w,
                 normal,
@@ -133,6 +142,7 @@ impl<'a> SlidingRun<'a> {
             Self {
                 particle: particle_b,
                 connected: connected_b,
+                first: self.first + at,
                 point: point_b,
                 target_w: target_w_b,
                 normal: normal_b,
@@ -153,5 +163,72 @@ impl<'a> SlidingRun<'a> {
                 candidate_outside: self.candidate_outside,
             },
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::closest_data::CLOSEST_CHUNK;
+    use crate::solver::workspace::SwitchedOn;
+    use std::sync::Mutex;
+
+    /// Cut in chunks, a run hands each piece the connected constraints in
+    /// its own range, as indices into the batch: together, once each, the
+    /// batch's connected constraints and no other.
+    #[test]
+    fn chunks_share_out_the_connected_constraints_by_range() {
+        let scene = super::super::tests::p1_with_skin(40, 30, {
+            crate::muscle::MuscleParams::surface_layer(1.1, 0.01)
+        });
+        let mut solver = scene.instantiate(std::path::Path::new(".")).unwrap();
+        solver.step();
+        let (mut skin, mut ws) = (solver.muscles()[1].clone(), solver.workspaces()[1].clone());
+        let n = skin.constraints.sliding.len();
+        assert!(n > 4 * CLOSEST_CHUNK, "{n} Sliding constraints");
+        // Every third vertex and a whole chunk's worth out of reach.
+        let connected = &mut skin.constraints.sliding.connected;
+        for (i, c) in connected.iter_mut().enumerate() {
+            *c = i % 3 != 0 && !(300..600).contains(&i);
+        }
+        let expected: Vec<u32> = (0..n as u32).filter(|&i| connected[i as usize]).collect();
+        let mut on = SwitchedOn::default();
+        on.list(&skin);
+        assert_eq!(on.sliding_connected, expected);
+        let ways = ws.bone_ways;
+        let run = SlidingRun::of(
+            &mut skin.constraints.sliding,
+            &on.sliding_connected,
+            &mut ws.candidate_warm,
+            (&mut ws.bone_cells, ways),
+            &mut ws.side_memo,
+        );
+        let pieces = Mutex::new(Vec::new());
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(3)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            run.for_each_chunk(CLOSEST_CHUNK, &|piece: SlidingRun| {
+                let range = piece.first..piece.first + piece.particle.len();
+                pieces
+                    .lock()
+                    .unwrap()
+                    .push((range, piece.connected.to_vec()));
+            })
+        });
+        let mut pieces = pieces.into_inner().unwrap();
+        pieces.sort_by_key(|(range, _)| range.start);
+        assert!(pieces.len() > 4, "{} pieces", pieces.len());
+        let mut next = 0;
+        for (range, listed) in &pieces {
+            assert_eq!(range.start, next);
+            assert!(range.len() <= CLOSEST_CHUNK);
+            assert!(listed.iter().all(|&i| range.contains(&(i as usize))));
+            next = range.end;
+        }
+        assert_eq!(next, n);
+        let all: Vec<u32> = pieces.into_iter().flat_map(|(_, l)| l).collect();
+        assert_eq!(all, expected);
     }
 }
