@@ -258,10 +258,15 @@ impl VolumeConstraint {
         if self.polygon_offsets.len() > Self::BLOCKED_POLYGONS {
             return self.evaluate_blocked(w, parallel);
         }
-        let (r, g) = (&self.relative, &mut self.gradient);
+        // Slices of one length, held apart from `self`: a vertex index
+        // checked against one is checked against both, and the gradient's
+        // stores do not make the compiler reload the vectors' headers.
+        let n = self.surface_count;
+        let (r, g) = (&self.relative[..n], &mut self.gradient[..n]);
+        let (offsets, indices) = (&self.polygon_offsets[..], &self.polygon_indices[..]);
         let mut six_v = 0.0f64;
-        for o in self.polygon_offsets.windows(2) {
-            let poly = &self.polygon_indices[o[0] as usize..o[1] as usize];
+        for o in offsets.windows(2) {
+            let poly = &indices[o[0] as usize..o[1] as usize];
             let (six, m, share) = polygon_part(poly, r);
             six_v += six as f64;
             scatter_polygon(poly, r, m, share, g);
