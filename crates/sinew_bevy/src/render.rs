@@ -139,9 +139,8 @@ fn targets_from_meshes(
                         first.sharing_geometry(name.clone(), source)
                     }
                     _ => {
-                        let triangles = surface.triangles.clone();
-                        let target =
-                            TargetSurface::new(name.clone(), source, surface.positions, triangles);
+                        let (positions, triangles) = (surface.positions, surface.triangles);
+                        let target = TargetSurface::new(name.clone(), source, positions, triangles);
                         built.0.insert(handle.id(), target.clone());
                         target
                     }

@@ -223,12 +223,19 @@ fn reset_puts_a_hand_built_muscle_back_as_it_was_built() {
     assert!(positions(&app).iter().all(|p| p.is_finite()));
 }
 
+/// [`app`] with mesh assets, for entities made bones from their meshes.
 #[cfg(feature = "render")]
-#[test]
-fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
+fn app_with_meshes() -> App {
     let mut app = app();
     app.add_plugins(bevy::asset::AssetPlugin::default())
         .init_asset::<Mesh>();
+    app
+}
+
+#[cfg(feature = "render")]
+#[test]
+fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
+    let mut app = app_with_meshes();
     let ball = app
         .world_mut()
         .resource_mut::<Assets<Mesh>>()
@@ -285,9 +292,7 @@ fn any_mesh_entity_becomes_a_bone_a_muscle_slides_on() {
 #[test]
 fn mesh_entities_of_one_asset_share_one_bone_geometry() {
     use bevy::mesh::VertexAttributeValues;
-    let mut app = app();
-    app.add_plugins(bevy::asset::AssetPlugin::default())
-        .init_asset::<Mesh>();
+    let mut app = app_with_meshes();
     let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
     let ball = meshes.add(Sphere::new(0.02).mesh().ico(3).unwrap());
     let cube = meshes.add(Cuboid::new(0.02, 0.03, 0.04).mesh().build());

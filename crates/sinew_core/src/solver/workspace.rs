@@ -166,24 +166,26 @@ pub(crate) struct SwitchedOn {
 
 impl SwitchedOn {
     /// Lists the connections of `m` that are on (not
-    /// [`ConstraintBatch::is_off`]).
+    /// [`ConstraintBatch::is_off`]), and the Sliding constraints whose
+    /// vertex connects.
     pub fn list(&mut self, m: &Muscle) {
-        fn list(batch: &impl ConstraintBatch, list: &mut Vec<u32>) {
+        /// The indices of `flags` that are set, into `list`.
+        fn list(flags: impl Iterator<Item = bool>, list: &mut Vec<u32>) {
             list.clear();
-            list.extend(
-                (0..batch.count())
-                    .filter(|&i| !batch.is_off(i))
-                    .map(|i| i as u32),
-            );
+            let set = flags.enumerate().filter(|&(_, set)| set);
+            list.extend(set.map(|(i, _)| i as u32));
+        }
+        fn on(batch: &impl ConstraintBatch) -> impl Iterator<Item = bool> {
+            (0..batch.count()).map(|i| !batch.is_off(i))
         }
         let c = &m.constraints;
-        list(&c.soft, &mut self.soft);
-        list(&c.hard, &mut self.hard);
-        list(&c.sliding, &mut self.sliding);
-        self.sliding_connected.clear();
-        let connected = c.sliding.connected.iter().enumerate();
-        let connected = connected.filter_map(|(i, &connected)| connected.then_some(i as u32));
-        self.sliding_connected.extend(connected);
+        list(on(&c.soft), &mut self.soft);
+        list(on(&c.hard), &mut self.hard);
+        list(on(&c.sliding), &mut self.sliding);
+        list(
+            c.sliding.connected.iter().copied(),
+            &mut self.sliding_connected,
+        );
     }
 
     /// The list for constraints of `kind`, if it keeps one.
