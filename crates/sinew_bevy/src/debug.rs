@@ -99,8 +99,8 @@ fn draw(
             }
         }
         if v.sliding {
-            for (&i, point) in k.sliding.particle.iter().zip(&k.sliding.point) {
-                gizmos.line(p[i.index()], *point, Color::srgb(0.2, 0.8, 1.0));
+            for (&i, contact) in k.sliding.particle.iter().zip(&k.sliding.contact) {
+                gizmos.line(p[i.index()], contact.point, Color::srgb(0.2, 0.8, 1.0));
             }
         }
         for (on, batch, color) in [

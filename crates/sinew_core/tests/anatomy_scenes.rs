@@ -228,7 +228,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
     for (m, ws) in solver.muscles().iter().zip(solver.workspaces()) {
         let c = &m.constraints.sliding;
         for i in 0..c.len() {
-            let chosen = c.target[i].index();
+            let chosen = c.contact[i].target.index();
             if chosen >= c.targets || c.rigid[chosen] {
                 continue;
             }
@@ -252,7 +252,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
                 closest_data(&mut m, &mut ws, targets, keep);
                 // It now follows a bone: this one, or where two bones meet
                 // one its walk finds it deeper in.
-                let now = m.constraints.sliding.target[i].index();
+                let now = m.constraints.sliding.contact[i].target.index();
                 assert!(
                     now < c.targets && c.rigid[now],
                     "{}: vertex {v} inside bone slot {bone} follows slot {now} (chose {chosen})",

@@ -43,7 +43,7 @@ pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;
 pub use runs::{OPEN_RUNS, RUN};
 pub(crate) use sliding::outside_at_rest;
-pub use sliding::{SlidingBatch, SlidingMode};
+pub use sliding::{SlidingBatch, SlidingContact, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams, VolumeProjection};
 
 use glam::Vec3;

@@ -44,6 +44,36 @@ pub enum SlidingMode {
     Contact,
 }
 
+/// What closest data found for one Sliding constraint: its chosen target
+/// and the closest point on it, everything the projection reads of it in
+/// one cache line. Closest data visits the vertices in a contact band, a
+/// sparse few of a muscle's (T7: about one in ten), where a field per
+/// array cost a cache line per field and vertex; together the record
+/// costs one, for closest data and for the projection after it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub struct SlidingContact {
+    /// Closest point on the chosen target (written by the closest-data block).
+    pub point: Vec3,
+    /// Outward normal at `point`.
+    pub normal: Vec3,
+    /// Barycentric coordinates of `point` in `triangle` when it was found.
+    pub barycentric: Vec3,
+    /// Generalised inverse mass of `point` on its target (0 on a bone),
+    /// written with `point`. Units: 1/kg.
+    pub target_w: f32,
+    /// The rest gap to the chosen target, written with `target` (infinite
+    /// when none is chosen or it is out of the contact band). Units: m.
+    pub gap: f32,
+    /// Triangle of the chosen target that `point` was found on.
+    pub triangle: u32,
+    /// Chosen target slot this iteration ([`TargetSlot::NONE`]: none within reach).
+    pub target: TargetSlot,
+    /// Whether the vertex was outside the chosen target at rest, written
+    /// with `target`.
+    pub outside: bool,
+}
+
 /// One Sliding constraint per surface vertex.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SlidingBatch {
@@ -51,18 +81,11 @@ pub struct SlidingBatch {
     pub particle: Vec<ParticleId>,
     /// Compliance per constraint (type compliance / painted weight); infinite = off.
     pub compliance: Vec<f32>,
-    /// Closest point on the chosen target (written by the closest-data block).
-    pub point: Vec<Vec3>,
-    /// Outward normal at `point`.
-    pub normal: Vec<Vec3>,
-    /// Triangle of the chosen target that `point` was found on.
-    pub triangle: Vec<u32>,
-    /// Barycentric coordinates of `point` in `triangle` when it was found.
-    pub barycentric: Vec<Vec3>,
-    /// Unit normal of `triangle`'s plane when `point` was found.
+    /// Per constraint, its chosen target and closest point on it.
+    pub contact: Vec<SlidingContact>,
+    /// Unit normal of the contact's triangle's plane when its point was
+    /// found (read by [`crate::solver::SolverSettings::feature_contacts`]).
     pub plane: Vec<Vec3>,
-    /// Chosen target slot this iteration ([`TargetSlot::NONE`]: none within reach).
-    pub target: Vec<TargetSlot>,
     /// Accumulated multipliers.
     pub lambda: Vec<f32>,
     /// Equality or contact.
@@ -71,9 +94,6 @@ pub struct SlidingBatch {
     pub targets: usize,
     /// Per target slot: a rigid bone (contact with it is not compliant).
     pub rigid: Vec<bool>,
-    /// Generalised inverse mass of `point` on its target (0 on a bone),
-    /// written with `point`. Units: 1/kg.
-    pub target_w: Vec<f32>,
     /// Walk to the closest points in the first iteration of a substep
     /// only; later iterations re-project onto the triangles found (a
     /// surface layer in [`SlidingMode::Contact`]: a skin over a body, held
@@ -106,12 +126,6 @@ pub struct SlidingBatch {
     /// Where each constraint's run of `inside` starts; one more entry than
     /// constraints.
     pub inside_start: Vec<u32>,
-    /// The rest gap to the chosen target, written with `target` (infinite
-    /// when none is chosen or it is out of the contact band). Units: m.
-    pub gap: Vec<f32>,
-    /// Whether the vertex was outside the chosen target at rest, written
-    /// with `target`.
-    pub outside: Vec<bool>,
     /// Whether the vertex connects at all: some target lies within reach
     /// ([`crate::muscle::MuscleParams::contact_reach`] for muscles, any gap
     /// for bones). A vertex out of reach keeps its constraints, switched off.
@@ -168,9 +182,11 @@ impl SlidingBatch {
     /// Chooses target `slot` for constraint `i` (`None`: no target), with
     /// its rest gap and side; the closest point is written apart.
     pub fn choose(&mut self, i: usize, slot: Option<usize>) {
-        self.target[i] = slot.map_or(TargetSlot::NONE, TargetSlot::new);
-        self.gap[i] = slot.map_or(f32::INFINITY, |s| self.rest_gap(i, s));
-        self.outside[i] = slot.is_none_or(|s| self.outside_at_rest(i, s));
+        let gap = slot.map_or(f32::INFINITY, |s| self.rest_gap(i, s));
+        let outside = slot.is_none_or(|s| self.outside_at_rest(i, s));
+        let c = &mut self.contact[i];
+        c.target = slot.map_or(TargetSlot::NONE, TargetSlot::new);
+        (c.gap, c.outside) = (gap, outside);
     }
 
     /// Number of constraints.
@@ -185,15 +201,16 @@ impl SlidingBatch {
 
     /// Value and gradient of constraint `i` at `p` (None when inactive).
     pub fn value_and_gradient(&self, i: usize, p: Vec3) -> Option<(f32, Vec3)> {
-        self.target[i].get()?;
-        let (c, n) = (self.point[i], self.normal[i]);
-        let gap = self.gap[i];
+        let contact = &self.contact[i];
+        contact.target.get()?;
+        let (c, n) = (contact.point, contact.normal);
+        let gap = contact.gap;
         if !gap.is_finite() {
             // Out of the vertex's contact band: no rest gap to keep.
             return None;
         }
         let s = n.dot(p - c);
-        if s < 0.0 && self.outside[i] {
+        if s < 0.0 && contact.outside {
             return Some((s - gap, n));
         }
         let d = p - c;
@@ -258,19 +275,20 @@ impl ConstraintBatch for SlidingBatch {
             return None;
         }
         let mut x = start;
-        if let Some(t) = self.target[i].get()
+        let contact = &self.contact[i];
+        if let Some(t) = contact.target.get()
             && w > 0.0
             && self.rigid.get(t) == Some(&true)
         {
-            let s = self.normal[i].dot(x - self.point[i]);
-            if s < 0.0 && self.outside[i] {
-                x -= self.normal[i] * s;
+            let s = contact.normal.dot(x - contact.point);
+            if s < 0.0 && contact.outside {
+                x -= contact.normal * s;
             }
         }
         let Some((c, g)) = self.value_and_gradient(i, x) else {
             return (x != start).then(|| Correction::one(0.0, x));
         };
-        let wk = w + self.target_w[i];
+        let wk = w + contact.target_w;
         let mut dl = delta_lambda(c, lambda, wk * g.length_squared(), alpha);
         if self.mode == SlidingMode::Contact {
             // Unilateral: total λ stays ≥ 0 (it may only push outwards).
@@ -285,6 +303,14 @@ impl ConstraintBatch for SlidingBatch {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A contact is one cache line, starting on one: closest data and the
+    /// projection touch one line per constraint.
+    #[test]
+    fn a_contact_fills_one_cache_line() {
+        assert_eq!(std::mem::size_of::<SlidingContact>(), 64);
+        assert_eq!(std::mem::align_of::<SlidingContact>(), 64);
+    }
 
     /// Each candidate's gap and side sit beside its slot, slots out of
     /// reach (infinite gaps) are not candidates, and the targets a vertex
@@ -311,20 +337,26 @@ mod tests {
                 assert_eq!(s.outside_at_rest(i, t), outside[i * 3 + t], "({i}, {t})");
             }
         }
-        s.target = vec![TargetSlot::NONE; 3];
-        s.gap = vec![0.0; 3];
-        s.outside = vec![true; 3];
+        let unset = SlidingContact {
+            point: Vec3::ZERO,
+            normal: Vec3::ZERO,
+            barycentric: Vec3::ZERO,
+            target_w: 0.0,
+            gap: 0.0,
+            triangle: 0,
+            target: TargetSlot::NONE,
+            outside: true,
+        };
+        s.contact = vec![unset; 3];
+        let chosen = |s: &SlidingBatch, i: usize| {
+            let c = s.contact[i];
+            (c.target.get(), c.gap, c.outside)
+        };
         s.choose(2, Some(2));
-        assert_eq!(
-            (s.target[2].get(), s.gap[2], s.outside[2]),
-            (Some(2), 0.0, false)
-        );
+        assert_eq!(chosen(&s, 2), (Some(2), 0.0, false));
         s.choose(0, Some(1));
-        assert_eq!((s.gap[0], s.outside[0]), (inf, false));
+        assert_eq!(chosen(&s, 0), (Some(1), inf, false));
         s.choose(0, None);
-        assert_eq!(
-            (s.target[0].get(), s.gap[0], s.outside[0]),
-            (None, inf, true)
-        );
+        assert_eq!(chosen(&s, 0), (None, inf, true));
     }
 }

@@ -9,7 +9,7 @@ use super::params::ClosestSchedule;
 use super::sliding_run::SlidingRun;
 use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
-use crate::constraints::{PointBatch, TargetId, TargetSlot};
+use crate::constraints::{PointBatch, SlidingContact, TargetId, TargetSlot};
 use crate::muscle::{Muscle, SurfaceAnchor};
 use glam::Vec3;
 
@@ -187,14 +187,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             particle,
             connected,
             first: run_start,
-            point,
-            target_w,
-            normal,
-            target,
-            gap: chosen_gap,
-            outside: chosen_outside,
-            triangle,
-            barycentric,
+            contact,
             plane,
             warm,
             bone_cells,
@@ -211,14 +204,16 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             let i = k as usize - run_start;
             let v = particle[i].index();
             let q = self.p[v];
-            let first = target[i].get().unwrap_or(usize::MAX);
+            let held_contact = contact[i];
+            let first = held_contact.target.get().unwrap_or(usize::MAX);
             let choose = search.chooses(v) || first >= nt;
             // Later iterations project the vertex onto the feature (face
             // plane, edge or corner) of the triangle the walk found: the
             // closest point while the vertex stays in that feature's region.
             if !choose && !search.walk && search.feature_contacts {
                 let surface = self.targets.target(self.target_ids[first]);
-                point[i] = surface.on_feature(q, triangle[i], barycentric[i], plane[i]);
+                let (t, bary) = (held_contact.triangle, held_contact.barycentric);
+                contact[i].point = surface.on_feature(q, t, bary, plane[i]);
                 continue;
             }
             // Last iteration's target first. The vertex re-chooses in the
@@ -227,10 +222,21 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             // first iteration of a frame, still checks every bone whose box
             // it is in (it may have entered one).
             let bones_only = !choose;
-            let run = candidate_start[i] as usize..candidate_start[i + 1] as usize;
+            let rescan = choose || search.first_of_frame;
+            // A bone held in an iteration that visits no other target is
+            // the only candidate, with the rest gap and side stored when it
+            // was chosen (a finite gap: it is a candidate): the candidate
+            // lists, a few cache lines per vertex, are not read.
+            let (held_gap, held_outside) = (held_contact.gap, held_contact.outside);
+            let held_bone = (!rescan && first < nt && rigid[first] && held_gap.is_finite())
+                .then_some((first, held_gap, held_outside, usize::MAX));
             // `(slot, rest gap, outside at rest, warm cell)` of each
             // candidate (its warm cell in the run's `warm`).
             let base = candidate_start[0] as usize;
+            let run = match held_bone {
+                Some(_) => base..base,
+                None => candidate_start[i] as usize..candidate_start[i + 1] as usize,
+            };
             let within = candidates[run.clone()].iter().map(|&s| s as usize);
             let within = within
                 .zip(candidate_gap[run.clone()].iter().copied())
@@ -239,10 +245,12 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 .map(|(((slot, gap), out), cell)| (slot, gap, out, cell));
             // The held target's entry; out of its contact band it has none
             // (no gap to keep) and is not held.
-            let held = (first < nt)
-                .then(|| within.clone().find(|&(s, ..)| s == first))
-                .flatten();
-            let others = (choose || search.first_of_frame).then_some(within);
+            let held = held_bone.or_else(|| {
+                (first < nt)
+                    .then(|| within.clone().find(|&(s, ..)| s == first))
+                    .flatten()
+            });
+            let others = rescan.then_some(within);
             let others = others.into_iter().flatten().filter(|&(s, ..)| s != first);
             let full = search.wants(v);
             let mut best: Option<(Claim, ClosestHit, usize, f32, bool)> = None;
@@ -312,22 +320,26 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             match best {
                 Some((_, hit, slot, gap, rest_outside)) => {
                     let surface = self.targets.target(self.target_ids[slot]);
-                    point[i] = hit.point;
-                    target_w[i] = surface.point_inverse_mass(hit.triangle, hit.barycentric);
-                    normal[i] = hit.normal;
-                    triangle[i] = hit.triangle;
-                    barycentric[i] = hit.barycentric;
+                    contact[i] = SlidingContact {
+                        point: hit.point,
+                        normal: hit.normal,
+                        barycentric: hit.barycentric,
+                        target_w: surface.point_inverse_mass(hit.triangle, hit.barycentric),
+                        gap,
+                        triangle: hit.triangle,
+                        target: TargetSlot::new(slot),
+                        outside: rest_outside,
+                    };
                     // Only the feature projection reads the plane; it runs
                     // after a first iteration that comes here.
                     if search.feature_contacts {
                         plane[i] = surface.face_normal(hit.triangle);
                     }
-                    target[i] = TargetSlot::new(slot);
-                    (chosen_gap[i], chosen_outside[i]) = (gap, rest_outside);
                 }
                 None => {
-                    target[i] = TargetSlot::NONE;
-                    (chosen_gap[i], chosen_outside[i]) = (f32::INFINITY, true);
+                    let c = &mut contact[i];
+                    c.target = TargetSlot::NONE;
+                    (c.gap, c.outside) = (f32::INFINITY, true);
                 }
             }
         }

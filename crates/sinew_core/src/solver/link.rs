@@ -26,7 +26,7 @@
 
 use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{ClosestHit, NO_TRIANGLE, SideMemo, TargetSet, TargetSource};
-use crate::constraints::{ParticleId, TargetSlot};
+use crate::constraints::{ParticleId, SlidingContact, TargetSlot};
 use crate::muscle::{Muscle, SurfaceAnchor};
 use glam::Vec3;
 
@@ -168,16 +168,17 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         s.particle.push(ParticleId::from_index(v));
         s.connected.push(contact.is_some());
         s.compliance.push(0.0);
-        s.point.push(hit.point);
-        s.target_w
-            .push(target.point_inverse_mass(hit.triangle, hit.barycentric));
-        s.normal.push(hit.normal);
-        s.triangle.push(hit.triangle);
-        s.barycentric.push(hit.barycentric);
+        s.contact.push(SlidingContact {
+            point: hit.point,
+            normal: hit.normal,
+            barycentric: hit.barycentric,
+            target_w: target.point_inverse_mass(hit.triangle, hit.barycentric),
+            gap: f32::INFINITY,
+            triangle: hit.triangle,
+            target: TargetSlot::new(slot),
+            outside: true,
+        });
         s.plane.push(target.face_normal(hit.triangle));
-        s.target.push(TargetSlot::new(slot));
-        s.gap.push(f32::INFINITY);
-        s.outside.push(true);
         s.lambda.push(0.0);
         let (slot, hit) = tie.unwrap_or(nearest);
         let target = surfaces[slot];
@@ -209,7 +210,7 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
     }
     c.sliding.set_rest(&rest_gap, &rest_outside);
     for i in 0..c.sliding.len() {
-        c.sliding.choose(i, c.sliding.target[i].get());
+        c.sliding.choose(i, c.sliding.contact[i].target.get());
     }
     m.relink_weights();
     ws.reset_caches(m);

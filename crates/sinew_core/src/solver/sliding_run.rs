@@ -5,7 +5,7 @@
 use super::closest_data::for_each_piece;
 use super::workspace::BoneCell;
 use crate::closest::SideMemo;
-use crate::constraints::{ParticleId, SlidingBatch, TargetSlot};
+use crate::constraints::{ParticleId, SlidingBatch, SlidingContact};
 use glam::Vec3;
 
 /// A run of Sliding constraints' closest data: the batch's slices for the
@@ -17,15 +17,7 @@ pub(super) struct SlidingRun<'a> {
     pub(super) connected: &'a [u32],
     /// The batch index of the run's first constraint.
     pub(super) first: usize,
-    pub(super) point: &'a mut [Vec3],
-    pub(super) target_w: &'a mut [f32],
-    pub(super) normal: &'a mut [Vec3],
-    pub(super) target: &'a mut [TargetSlot],
-    /// The chosen target's rest gap and side, written with `target`.
-    pub(super) gap: &'a mut [f32],
-    pub(super) outside: &'a mut [bool],
-    pub(super) triangle: &'a mut [u32],
-    pub(super) barycentric: &'a mut [Vec3],
+    pub(super) contact: &'a mut [SlidingContact],
     pub(super) plane: &'a mut [Vec3],
     /// The warm cells of the run's candidates (`candidate_warm` from the
     /// run's first candidate on).
@@ -65,14 +57,7 @@ impl<'a> SlidingRun<'a> {
             particle: &s.particle,
             connected,
             first: 0,
-            point: &mut s.point,
-            target_w: &mut s.target_w,
-            normal: &mut s.normal,
-            target: &mut s.target,
-            gap: &mut s.gap,
-            outside: &mut s.outside,
-            triangle: &mut s.triangle,
-            barycentric: &mut s.barycentric,
+            contact: &mut s.contact,
             plane: &mut s.plane,
             warm,
             bone_cells,
@@ -98,14 +83,7 @@ impl<'a> SlidingRun<'a> {
         let (particle, particle_b) = self.particle.split_at(at);
         let cut = (self.connected).partition_point(|&i| (i as usize) < self.first + at);
         let (connected, connected_b) = self.connected.split_at(cut);
-        let (point, point_b) = self.point.split_at_mut(at);
-        let (target_w, target_w_b) = self.target_w.split_at_mut(at);
-        let (normal, normal_b) = self.normal.split_at_mut(at);
-        let (target, target_b) = self.target.split_at_mut(at);
-        let (gap, gap_b) = self.gap.split_at_mut(at);
-        let (outside, outside_b) = self.outside.split_at_mut(at);
-        let (triangle, triangle_b) = self.triangle.split_at_mut(at);
-        let (barycentric, barycentric_b) = self.barycentric.split_at_mut(at);
+        let (contact, contact_b) = self.contact.split_at_mut(at);
         let (plane, plane_b) = self.plane.split_at_mut(at);
         let first = self.candidate_start[at] - self.candidate_start[0];
         let (warm, warm_b) = self.warm.split_at_mut(first as usize);
@@ -120,14 +98,7 @@ impl<'a> SlidingRun<'a> {
                 particle,
                 connected,
                 first: self.first,
-                point,
-                target_w,
-                normal,
-                target,
-                gap,
-                outside,
-                triangle,
-                barycentric,
+                contact,
                 plane,
                 warm,
                 bone_cells,
@@ -143,14 +114,7 @@ impl<'a> SlidingRun<'a> {
                 particle: particle_b,
                 connected: connected_b,
                 first: self.first + at,
-                point: point_b,
-                target_w: target_w_b,
-                normal: normal_b,
-                target: target_b,
-                gap: gap_b,
-                outside: outside_b,
-                triangle: triangle_b,
-                barycentric: barycentric_b,
+                contact: contact_b,
                 plane: plane_b,
                 warm: warm_b,
                 bone_cells: bone_cells_b,

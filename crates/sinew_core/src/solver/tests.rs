@@ -118,14 +118,8 @@ fn isolate(m: &mut Muscle, kind: K, keep: usize) {
             let sides: Vec<bool> = (0..nt).map(|t| s.outside_at_rest(keep, t)).collect();
             s.particle = vec![s.particle[keep]];
             s.compliance = vec![0.0];
-            s.gap = vec![s.gap[keep]];
-            s.outside = vec![s.outside[keep]];
-            s.point = vec![s.point[keep]];
-            s.normal = vec![s.normal[keep]];
-            s.triangle = vec![s.triangle[keep]];
-            s.barycentric = vec![s.barycentric[keep]];
+            s.contact = vec![s.contact[keep]];
             s.plane = vec![s.plane[keep]];
-            s.target = vec![s.target[keep]];
             s.lambda = vec![0.0];
             s.set_rest(&gaps, &sides);
         }
@@ -504,7 +498,7 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
             let (mut m, mut ws) = (m.clone(), ws.clone());
             closest_data(&mut m, &mut ws, targets, first);
             for (i, &v) in m.constraints.sliding.particle.iter().enumerate() {
-                let n = m.constraints.sliding.normal[i];
+                let n = m.constraints.sliding.contact[i].normal;
                 m.p[v.index()] += 1e-3 * n.any_orthonormal_vector();
             }
             let (mut exact, mut exact_ws) = (m.clone(), ws.clone());
@@ -512,14 +506,14 @@ fn later_iterations_project_onto_the_feature_the_walk_found() {
             closest_data(&mut m, &mut ws, targets, later);
             let (fast, exact) = (&m.constraints.sliding, &exact.constraints.sliding);
             total += fast.len();
-            for i in 0..fast.len() {
-                let same_feature = exact.triangle[i] == fast.triangle[i]
-                    && exact.target[i] == fast.target[i]
-                    && region(exact.barycentric[i]) == region(fast.barycentric[i]);
+            for (i, (fast, exact)) in fast.contact.iter().zip(&exact.contact).enumerate() {
+                let same_feature = exact.triangle == fast.triangle
+                    && exact.target == fast.target
+                    && region(exact.barycentric) == region(fast.barycentric);
                 if same_feature {
-                    let d = fast.point[i].distance(exact.point[i]);
+                    let d = fast.point.distance(exact.point);
                     assert!(d < 1e-6, "{scene}, {}: constraint {i}: {d}", m.name);
-                    compared[region(fast.barycentric[i]).count_ones() as usize - 1] += 1;
+                    compared[region(fast.barycentric).count_ones() as usize - 1] += 1;
                 }
             }
         }
