@@ -53,6 +53,7 @@ mod glb_container;
 pub mod import;
 pub mod mesh;
 pub mod muscle;
+mod prefetch;
 mod ron_text;
 pub mod scene;
 pub mod sensor;

@@ -38,6 +38,7 @@
 //! the mean edge length.
 
 use crate::constraints::TargetId;
+use crate::prefetch::prefetch;
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 use std::sync::Arc;
 
@@ -394,6 +395,36 @@ impl TargetSurface {
     pub fn world_vertex(&self, i: u32) -> Vec3 {
         self.transform
             .transform_point3(self.geometry.positions[i as usize])
+    }
+
+    /// Asks for the cache line of triangle `t`'s corner indices (a hint:
+    /// see [`crate::prefetch`]); nothing for a triangle out of range.
+    #[inline]
+    pub(crate) fn prefetch_triangle(&self, t: u32) {
+        if let Some(corners) = self.geometry.triangles.get(t as usize) {
+            prefetch(corners);
+        }
+    }
+
+    /// Asks for the positions, normals and (a muscle's) inverse masses of
+    /// triangle `t`'s corners, which a walk from `t` reads first (a hint,
+    /// best after [`TargetSurface::prefetch_triangle`] had time to bring
+    /// the indices).
+    #[inline]
+    pub(crate) fn prefetch_corners(&self, t: u32) {
+        let g = &*self.geometry;
+        let Some(corners) = g.triangles.get(t as usize) else {
+            return;
+        };
+        for &v in corners {
+            let v = v as usize;
+            for line in [g.positions.get(v), g.normals.get(v)].into_iter().flatten() {
+                prefetch(line);
+            }
+            if let Some(w) = self.inverse_mass.get(v) {
+                prefetch(w);
+            }
+        }
     }
 
     /// Closest point on triangle `t` to a local-frame point: `(point, barycentric)`.

@@ -11,6 +11,7 @@ use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{ClosestHit, NO_TRIANGLE, TargetSet, TargetSurface};
 use crate::constraints::{PointBatch, SlidingContact, TargetId, TargetSlot};
 use crate::muscle::{Muscle, SurfaceAnchor};
+use crate::prefetch::prefetch;
 use glam::Vec3;
 
 /// Sliding constraints per parallel chunk of the closest-data block (a few
@@ -200,8 +201,52 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             candidate_outside,
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
-        for &k in connected {
-            let i = k as usize - run_start;
+        let at = |k: u32| k as usize - run_start;
+        // The surface a contact was last found on.
+        let held_surface = |c: &SlidingContact| {
+            let slot = c.target.get().filter(|&s| s < nt)?;
+            Some(self.targets.target(self.target_ids[slot]))
+        };
+        for (n, &k) in connected.iter().enumerate() {
+            // The loads of the vertices to come, asked for while this one
+            // is worked on, each link of the chain a step later than the
+            // one it needs (by then in the cache): three ahead the
+            // vertex's index, contact, bone cells and where its candidates
+            // start; two ahead its position, its candidates and its
+            // triangle's corner indices; one ahead the corners' positions,
+            // normals and inverse masses.
+            if let Some(&ahead) = connected.get(n + 3) {
+                let i = at(ahead);
+                prefetch(&particle[i]);
+                prefetch(&contact[i]);
+                prefetch(&candidate_start[i]);
+                if let Some(cell) = bone_cells.get(i * bone_ways) {
+                    prefetch(cell);
+                }
+            }
+            if let Some(&ahead) = connected.get(n + 2) {
+                let i = at(ahead);
+                prefetch(&self.p[particle[i].index()]);
+                let from = candidate_start[i] as usize;
+                if let Some(slot) = candidates.get(from) {
+                    prefetch(slot);
+                    prefetch(&candidate_gap[from]);
+                    prefetch(&candidate_outside[from]);
+                }
+                if let Some(cell) = warm.get(from - candidate_start[0] as usize) {
+                    prefetch(cell);
+                }
+                if let Some(surface) = held_surface(&contact[i]) {
+                    surface.prefetch_triangle(contact[i].triangle);
+                }
+            }
+            if let Some(&next) = connected.get(n + 1) {
+                let i = at(next);
+                if let Some(surface) = held_surface(&contact[i]) {
+                    surface.prefetch_corners(contact[i].triangle);
+                }
+            }
+            let i = at(k);
             let v = particle[i].index();
             let q = self.p[v];
             let held_contact = contact[i];

@@ -7,7 +7,8 @@
 //! buffer, no serial commit, the same result for any thread count.
 //!
 //! Rust cannot see that disjointness through `&mut [Vec3]`, so this module —
-//! the only one in the crate allowed `unsafe` — hands each thread a
+//! with the prefetch hint of `crate::prefetch` the only one in the crate
+//! allowed `unsafe` — hands each thread a
 //! [`SharedSlice`], a raw view of the muscle's positions and multipliers.
 //! Soundness rests on this module alone:
 //!
