@@ -207,15 +207,17 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
             let slot = c.target.get().filter(|&s| s < nt)?;
             Some(self.targets.target(self.target_ids[slot]))
         };
-        for (n, &k) in connected.iter().enumerate() {
-            // The loads of the vertices to come, asked for while this one
-            // is worked on, each link of the chain a step later than the
-            // one it needs (by then in the cache): three ahead the
-            // vertex's index, contact, bone cells and where its candidates
-            // start; two ahead its position, its candidates and its
-            // triangle's corner indices; one ahead the corners' positions,
-            // normals and inverse masses.
-            if let Some(&ahead) = connected.get(n + 3) {
+        // The loop runs `LEAD` steps ahead of the work: step `n` asks for
+        // the loads of vertex `n` (its index, contact, bone cells and where
+        // its candidates start), then of vertex `n − 1` (its position, its
+        // candidates and its triangle's corner indices), then of vertex
+        // `n − 2` (the corners' positions, normals and inverse masses),
+        // each link of a chain a step after the one it needs (by then in
+        // the cache), and works on vertex `n − 3`. The first steps only ask.
+        const LEAD: usize = 3;
+        let lagging = |n: usize, by: usize| n.checked_sub(by).and_then(|m| connected.get(m));
+        for n in 0..connected.len() + LEAD {
+            if let Some(&ahead) = lagging(n, 0) {
                 let i = at(ahead);
                 prefetch(&particle[i]);
                 prefetch(&contact[i]);
@@ -224,7 +226,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                     prefetch(cell);
                 }
             }
-            if let Some(&ahead) = connected.get(n + 2) {
+            if let Some(&ahead) = lagging(n, 1) {
                 let i = at(ahead);
                 prefetch(&self.p[particle[i].index()]);
                 let from = candidate_start[i] as usize;
@@ -240,12 +242,15 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                     surface.prefetch_triangle(contact[i].triangle);
                 }
             }
-            if let Some(&next) = connected.get(n + 1) {
+            if let Some(&next) = lagging(n, 2) {
                 let i = at(next);
                 if let Some(surface) = held_surface(&contact[i]) {
                     surface.prefetch_corners(contact[i].triangle);
                 }
             }
+            let Some(&k) = lagging(n, LEAD) else {
+                continue;
+            };
             let i = at(k);
             let v = particle[i].index();
             let q = self.p[v];
