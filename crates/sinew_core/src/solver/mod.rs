@@ -32,6 +32,7 @@ mod params;
 pub mod passes;
 pub mod pipeline;
 mod settings;
+mod sliding_closest;
 mod sliding_run;
 mod step;
 mod sweep;
