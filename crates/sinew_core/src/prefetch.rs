@@ -7,7 +7,7 @@
 //! triangle it was on) that misses the cache on every link: a muscle's
 //! data is evicted by the others' between its iterations, and each link
 //! waited for the one before. Asking for the next vertices' lines while
-//! one is worked on overlaps those waits (`solver::closest_data`). This
+//! one is worked on overlaps those waits (`solver::sliding_closest`). This
 //! module and `solver::sweep` are the crate's only `unsafe`.
 #![expect(
     unsafe_code,

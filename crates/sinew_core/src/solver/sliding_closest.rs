@@ -76,6 +76,9 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
         } = run;
         let (nt, search) = (self.target_ids.len(), self.search);
         let at = |k: u32| k as usize - run_start;
+        // Where the run's candidates start in the batch's: a candidate's
+        // warm cell is its index in the run's `warm` from there.
+        let base = candidate_start[0] as usize;
         // The surface a contact was last found on.
         let held_surface = |c: &SlidingContact| {
             let slot = c.target.get().filter(|&s| s < nt)?;
@@ -109,7 +112,7 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                     prefetch(&candidate_gap[from]);
                     prefetch(&candidate_outside[from]);
                 }
-                if let Some(cell) = warm.get(from - candidate_start[0] as usize) {
+                if let Some(cell) = warm.get(from - base) {
                     prefetch(cell);
                 }
                 if let Some(surface) = held_surface(&contact[i]) {
@@ -156,7 +159,6 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 .then_some((first, held_gap, held_outside, usize::MAX));
             // `(slot, rest gap, outside at rest, warm cell)` of each
             // candidate (its warm cell in the run's `warm`).
-            let base = candidate_start[0] as usize;
             let run = match held_bone {
                 Some(_) => base..base,
                 None => candidate_start[i] as usize..candidate_start[i + 1] as usize,
