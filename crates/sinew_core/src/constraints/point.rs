@@ -89,6 +89,14 @@ impl ConstraintBatch for PointBatch {
         !self.compliance[i].is_finite()
     }
 
+    fn off_flags_are(&self, flags: &[bool]) -> bool {
+        flags.len() == self.compliance.len()
+            && (self.compliance.iter())
+                .zip(flags)
+                // Off exactly where the compliance is not finite.
+                .all(|(c, &off)| off != c.is_finite())
+    }
+
     fn lambda_storage(&mut self) -> &mut Vec<f32> {
         &mut self.lambda
     }

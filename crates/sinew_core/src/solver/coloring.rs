@@ -32,7 +32,7 @@ use crate::muscle::{ConstraintCounts, ConstraintKind};
 pub use super::constraint_ref::{
     ConstraintRef, commit, constraints_in_order, correction, particles_of,
 };
-use super::constraint_ref::{batch_particles, index_arrays, is_off, off_flags};
+use super::constraint_ref::{batch_particles, index_arrays, is_off, off_flags, off_flags_match};
 
 /// Constraint groups of one muscle in which no two constraints share a
 /// particle.
@@ -430,7 +430,7 @@ impl ColorPlan {
                 then == now
             })
             && rest.is_empty()
-            && off_flags(m).eq(self.off.iter().copied())
+            && off_flags_match(m, &self.off)
     }
 
     /// The cheap part of [`ColorPlan::fits`]: counts only.

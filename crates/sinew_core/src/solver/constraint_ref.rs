@@ -53,6 +53,24 @@ pub(super) fn off_flags(m: &Muscle) -> impl Iterator<Item = bool> + '_ {
         .flat_map(|b| (0..b.count()).map(move |i| b.is_off(i)))
 }
 
+/// Whether `flags` is [`off_flags`] of `m` (batch by batch, each batch
+/// compared in one call: [`ConstraintBatch::off_flags_are`]).
+pub(super) fn off_flags_match(m: &Muscle, flags: &[bool]) -> bool {
+    let k = &m.constraints;
+    let mut rest = flags;
+    MuscleConstraints::BATCHED
+        .iter()
+        .filter_map(|&kind| k.batch(kind))
+        .all(|b| {
+            let Some((these, after)) = rest.split_at_checked(b.count()) else {
+                return false;
+            };
+            rest = after;
+            b.off_flags_are(these)
+        })
+        && rest.is_empty()
+}
+
 /// Whether constraint `c` of `m` is switched off (a connection of weight 0).
 pub(super) fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
     m.constraints

@@ -54,6 +54,10 @@ fn switched_off_constraints_are_skipped_and_switching_one_makes_the_plan_stale()
         assert_eq!(all.sweep.op_count(), all.refs.len());
         // Weight 0 on a Soft and a Sliding constraint: the old plan no
         // longer fits, the new one leaves both out of its runs.
+        let on = (
+            m.constraints.soft.compliance[0],
+            m.constraints.sliding.compliance[1],
+        );
         m.constraints.soft.compliance[0] = f32::INFINITY;
         m.constraints.sliding.compliance[1] = f32::INFINITY;
         assert!(!all.fits(&m));
@@ -74,6 +78,12 @@ fn switched_off_constraints_are_skipped_and_switching_one_makes_the_plan_stale()
         assert!(!planned(ConstraintKind::Soft, 0));
         assert!(!planned(ConstraintKind::Sliding, 1));
         assert!(planned(ConstraintKind::Soft, 1));
+        // Either one back on: the plan without it is stale, the first one
+        // fits only when both are.
+        m.constraints.sliding.compliance[1] = on.1;
+        assert!(!fewer.fits(&m) && !all.fits(&m));
+        m.constraints.soft.compliance[0] = on.0;
+        assert!(!fewer.fits(&m) && all.fits(&m));
     }
 }
 
