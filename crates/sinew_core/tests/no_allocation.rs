@@ -1,7 +1,9 @@
 //! A step allocates nothing once the scene is set: the arm (T5: a
 //! skeleton, sensors, 17 muscles sliding on bones and on each other) steps
 //! 100 frames after its first with every method, on 1 and on 2 threads,
-//! under a global allocator that counts.
+//! and a skin over P1's oval on 4 threads (its colour sweep run by the
+//! threads as one team) 20 frames after its first, under a global
+//! allocator that counts.
 //!
 //! With worker threads a step is handed to the pool once
 //! ([`rayon::ThreadPool::install`]), and rayon's queue for jobs from outside
@@ -12,7 +14,10 @@
     reason = "a global allocator is an unsafe trait; this one forwards to the system's"
 )]
 
-use sinew_core::scene::Scene;
+use glam::Vec3;
+use sinew_core::mesh::primitives::MeshGenerator;
+use sinew_core::muscle::MuscleParams;
+use sinew_core::scene::{MeshSource, MuscleSpec, Scene};
 use sinew_core::{SolverMethod, SweepSchedule};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
@@ -83,5 +88,33 @@ fn stepping_the_arm_allocates_nothing_after_the_first_frame() {
             }
         }
     }
+    // A skin big enough that four threads sweep its colours as one team.
+    let mut scene = sinew_core::scene::builtin("P1").unwrap();
+    scene.muscles.push(MuscleSpec {
+        name: "skin".into(),
+        mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::new(0.064, 0.029, 0.029),
+            segments: 110,
+            stacks: 90,
+        }),
+        targets: vec!["oval".into()],
+        params: MuscleParams::surface_layer(2.2, 0.01),
+        ..Default::default()
+    });
+    scene.settings.threads = 4;
+    scene.settings.parallel_threshold = 0;
+    let mut solver = scene.instantiate(Path::new(".")).unwrap();
+    solver.step();
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    const SKIN_FRAMES: usize = 20;
+    for _ in 0..SKIN_FRAMES {
+        solver.step();
+    }
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    if allocations > SKIN_FRAMES.div_ceil(63) {
+        found.push(format!("a skin on 4 threads: {allocations} allocations"));
+    }
+    kept.push(solver);
     assert!(found.is_empty(), "{found:#?}");
 }

@@ -251,6 +251,38 @@ fn sequential_splits_a_surface_layer_by_colour_with_the_same_bits() {
     assert_eq!(run(1), run(4));
 }
 
+/// A skin big enough that its colours give each of four threads less
+/// than a task's worth is swept by the threads as one team
+/// (`sweep::runs_as_team`: one fork, a wait at each colour): the same
+/// bits on 1 and 4 threads, and on 2, where the colours fork one by one.
+#[test]
+fn a_surface_layer_swept_as_a_team_gives_the_same_bits() {
+    let run = |threads| {
+        let params = crate::muscle::MuscleParams::surface_layer(2.2, 0.01);
+        let mut scene = super::tests::p1_with_skin(110, 90, params);
+        scene.settings.threads = threads;
+        scene.settings.parallel_threshold = 0;
+        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+        for _ in 0..2 {
+            s.step();
+        }
+        let plan = s.workspaces()[1].plan().expect("the layer's colour plan");
+        assert!(
+            super::sweep::runs_as_team(plan.sweep(), 4),
+            "no team on 4 threads"
+        );
+        assert!(!super::sweep::runs_as_team(plan.sweep(), 1));
+        s.muscles()[1]
+            .x
+            .iter()
+            .flat_map(|p| p.to_array().map(f32::to_bits))
+            .collect::<Vec<u32>>()
+    };
+    let one = run(1);
+    assert_eq!(one, run(4));
+    assert_eq!(one, run(2));
+}
+
 #[test]
 fn a_plan_is_rebuilt_when_a_constraint_moves_other_particles() {
     let mut scene = builtin("P1").unwrap();

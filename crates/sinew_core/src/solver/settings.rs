@@ -17,7 +17,10 @@ pub enum SolverMethod {
     /// Gauss–Seidel, each constraint seeing the corrections before it, but
     /// the constraints of a group share no particle, so the layer splits
     /// over the threads (same bits for any thread count) instead of being
-    /// one thread's serial work while the muscles wait.
+    /// one thread's serial work while the muscles wait; where the groups
+    /// are small for the thread count, the threads run the whole pass as
+    /// one team, waiting for each other between groups instead of forking
+    /// each one.
     #[default]
     Sequential,
     /// Graph colouring (SPEC §9.3, the thesis' SMT-G): each muscle's
