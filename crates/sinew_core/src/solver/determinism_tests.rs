@@ -223,32 +223,47 @@ fn chunks_of_a_large_muscle_give_the_same_bits_on_threads() {
     }
 }
 
+/// The bits of the skin (`segments` × `stacks`, over P1's oval) after
+/// `steps` steps under `Sequential` on `threads` threads, after `inspect`
+/// has looked at the solver.
+fn layer_bits(
+    (segments, stacks): (u32, u32),
+    threads: u32,
+    steps: usize,
+    inspect: impl Fn(&Solver),
+) -> Vec<u32> {
+    let params = crate::muscle::MuscleParams::surface_layer(2.2, 0.01);
+    let mut scene = super::tests::p1_with_skin(segments, stacks, params);
+    scene.settings.threads = threads;
+    scene.settings.parallel_threshold = 0;
+    let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+    for _ in 0..steps {
+        s.step();
+    }
+    inspect(&s);
+    s.muscles()[1]
+        .x
+        .iter()
+        .flat_map(|p| p.to_array().map(f32::to_bits))
+        .collect()
+}
+
 /// `Sequential` projects a surface layer in its colour groups' order, in
 /// chunks on the threads: a 40 × 40 skin over P1's oval gives the same bits
 /// on 1 and 4 threads, its plan splits a colour, and the muscle under it
 /// keeps its plain Gauss–Seidel pass (no plan).
 #[test]
 fn sequential_splits_a_surface_layer_by_colour_with_the_same_bits() {
-    let run = |threads| {
-        let params = crate::muscle::MuscleParams::surface_layer(2.2, 0.01);
-        let mut scene = super::tests::p1_with_skin(40, 40, params);
-        scene.settings.threads = threads;
-        scene.settings.parallel_threshold = 0;
-        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
-        for _ in 0..5 {
-            s.step();
-        }
+    let split = |s: &Solver| {
         assert!(s.workspaces()[0].plan().is_none(), "the muscle has a plan");
         let plan = s.workspaces()[1].plan().expect("the layer's colour plan");
         let chunks = (0..plan.color_count()).map(|c| plan.chunk_count(c)).max();
         assert!(chunks > Some(1), "no colour of the layer was split");
-        s.muscles()[1]
-            .x
-            .iter()
-            .flat_map(|p| p.to_array().map(f32::to_bits))
-            .collect::<Vec<u32>>()
     };
-    assert_eq!(run(1), run(4));
+    assert_eq!(
+        layer_bits((40, 40), 1, 5, split),
+        layer_bits((40, 40), 4, 5, split)
+    );
 }
 
 /// A skin big enough that its colours give each of four threads less
@@ -257,30 +272,17 @@ fn sequential_splits_a_surface_layer_by_colour_with_the_same_bits() {
 /// bits on 1 and 4 threads, and on 2, where the colours fork one by one.
 #[test]
 fn a_surface_layer_swept_as_a_team_gives_the_same_bits() {
-    let run = |threads| {
-        let params = crate::muscle::MuscleParams::surface_layer(2.2, 0.01);
-        let mut scene = super::tests::p1_with_skin(110, 90, params);
-        scene.settings.threads = threads;
-        scene.settings.parallel_threshold = 0;
-        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
-        for _ in 0..2 {
-            s.step();
-        }
+    let team = |s: &Solver| {
         let plan = s.workspaces()[1].plan().expect("the layer's colour plan");
         assert!(
             super::sweep::runs_as_team(plan.sweep(), 4),
             "no team on 4 threads"
         );
         assert!(!super::sweep::runs_as_team(plan.sweep(), 1));
-        s.muscles()[1]
-            .x
-            .iter()
-            .flat_map(|p| p.to_array().map(f32::to_bits))
-            .collect::<Vec<u32>>()
     };
-    let one = run(1);
-    assert_eq!(one, run(4));
-    assert_eq!(one, run(2));
+    let one = layer_bits((110, 90), 1, 2, team);
+    assert_eq!(one, layer_bits((110, 90), 4, 2, team));
+    assert_eq!(one, layer_bits((110, 90), 2, 2, team));
 }
 
 #[test]
