@@ -262,8 +262,10 @@ impl<'a, T: Copy> SharedSlice<'a, T> {
 struct Team {
     /// The next chunk to claim, in solve order.
     next: AtomicUsize,
-    /// Chunks finished: every chunk before the first unfinished claim when
-    /// it equals that claim's index.
+    /// Chunks finished. A chunk waits for this to reach the index of its
+    /// colour's first chunk; no chunk of that colour or a later one
+    /// finishes before, so it gets there only once every chunk of the
+    /// colours before has finished.
     done: AtomicUsize,
     /// A member's chunk panicked: the others stop waiting (the panic
     /// reaches the caller through the fork).
