@@ -512,7 +512,7 @@ pub(super) fn sweep_muscle(m: &mut Muscle, plan: &SweepPlan, inv_h2: f32, parall
 /// fitted MakeHuman's skin (about 90 000 constraints in 23 colours) runs
 /// as a team from 4 threads up: on a 16-core Xeon its frame took ×0.92–0.95
 /// with the team (three interleaved pairs), while on 2 threads the team
-/// was slower (×1.06, the median of six pairs here), the threads waiting
+/// was slower (×1.07, the median of six pairs here), the threads waiting
 /// at every colour for each other instead of taking other work.
 pub(super) fn runs_as_team(plan: &SweepPlan, threads: usize) -> bool {
     let colors = plan.color_count();
