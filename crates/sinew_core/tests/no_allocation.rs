@@ -52,7 +52,7 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 #[test]
-fn stepping_the_arm_allocates_nothing_after_the_first_frame() {
+fn stepping_the_arm_and_a_skin_allocates_nothing_after_the_first_frame() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
     let scene = Scene::load(&path).unwrap();
     let base = scene.instantiate(path.parent().unwrap()).unwrap();

@@ -183,9 +183,9 @@ pub trait ConstraintBatch {
 
     /// Whether `flags` holds [`ConstraintBatch::is_off`] of every
     /// constraint of the batch, in order, in one call: what a colour plan
-    /// compares in the first iteration of each substep (a skin's 90 000
-    /// constraints one virtual call apiece were about half a millisecond
-    /// of its serial work). Default: no flag set.
+    /// compares in the first iteration of each substep, serially in its
+    /// muscle's task (a skin's 90 000 constraints had been one virtual
+    /// call apiece). Default: no flag set.
     fn off_flags_are(&self, flags: &[bool]) -> bool {
         flags.len() == self.count() && !flags.contains(&true)
     }
