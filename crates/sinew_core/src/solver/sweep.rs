@@ -181,8 +181,14 @@ impl SweepPlan {
             .sum()
     }
 
+    /// Whether colour `c` is worth splitting over threads: more than one
+    /// chunk, and at least [`TASK_CONSTRAINTS`] constraints (a smaller
+    /// colour costs less on one thread than a fork and a join).
+    pub(super) fn splits(&self, c: usize) -> bool {
+        self.chunk_count(c) > 1 && self.color_op_count(c) >= TASK_CONSTRAINTS
+    }
+
     /// Constraints the sweeps run (switched-off ones are left out).
-    #[cfg(test)]
     pub fn op_count(&self) -> usize {
         self.ops.len()
     }
@@ -459,14 +465,13 @@ impl<'a> MuscleSweep<'a> {
     }
 
     /// Runs colour `color`, its chunks in parallel when `parallel` and the
-    /// colour holds at least [`TASK_CONSTRAINTS`] constraints (a smaller
-    /// one costs less on one thread than its fork and join): a task takes
+    /// colour is worth splitting ([`SweepPlan::splits`]): a task takes
     /// one chunk when the colour has no more chunks than threads, else up
     /// to [`TASK_CONSTRAINTS`] worth of them.
     fn run_color(&self, color: usize, parallel: bool) {
         use rayon::prelude::*;
         let chunks = self.plan.chunk_count(color);
-        if parallel && chunks > 1 && self.plan.color_op_count(color) >= TASK_CONSTRAINTS {
+        if parallel && self.plan.splits(color) {
             let most = TASK_CONSTRAINTS / CHUNK_CONSTRAINTS;
             let per_task = (chunks / rayon::current_num_threads()).clamp(1, most);
             (0..chunks)
@@ -505,8 +510,7 @@ pub(super) fn sweep_muscle(m: &mut Muscle, plan: &SweepPlan, inv_h2: f32, parall
 }
 
 /// Whether a sweep of `plan` on `threads` threads runs as one team: it
-/// has a colour worth splitting (at least [`TASK_CONSTRAINTS`] constraints
-/// in more than one chunk), and its colours hold on average less than
+/// has a colour worth splitting ([`SweepPlan::splits`]), and its colours hold on average less than
 /// [`TASK_CONSTRAINTS`] per thread, so a fork and a join for each colour
 /// would cost about as much as the colour's work on each thread. The
 /// fitted MakeHuman's skin (about 90 000 constraints in 23 colours) runs
@@ -516,10 +520,9 @@ pub(super) fn sweep_muscle(m: &mut Muscle, plan: &SweepPlan, inv_h2: f32, parall
 /// at every colour for each other instead of taking other work.
 pub(super) fn runs_as_team(plan: &SweepPlan, threads: usize) -> bool {
     let colors = plan.color_count();
-    let ops: usize = (0..colors).map(|c| plan.color_op_count(c)).sum();
-    let splits =
-        (0..colors).any(|c| plan.chunk_count(c) > 1 && plan.color_op_count(c) >= TASK_CONSTRAINTS);
-    threads > 1 && splits && ops < TASK_CONSTRAINTS * colors * threads
+    threads > 1
+        && (0..colors).any(|c| plan.splits(c))
+        && plan.op_count() < TASK_CONSTRAINTS * colors * threads
 }
 
 /// Runs colour `color` of `plan` on `m`, its chunks in parallel on the
