@@ -14,10 +14,9 @@
     reason = "a global allocator is an unsafe trait; this one forwards to the system's"
 )]
 
-use glam::Vec3;
-use sinew_core::mesh::primitives::MeshGenerator;
-use sinew_core::muscle::MuscleParams;
-use sinew_core::scene::{MeshSource, MuscleSpec, Scene};
+mod common;
+
+use sinew_core::scene::Scene;
 use sinew_core::{SolverMethod, SweepSchedule};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
@@ -89,19 +88,7 @@ fn stepping_the_arm_and_a_skin_allocates_nothing_after_the_first_frame() {
         }
     }
     // A skin big enough that four threads sweep its colours as one team.
-    let mut scene = sinew_core::scene::builtin("P1").unwrap();
-    scene.muscles.push(MuscleSpec {
-        name: "skin".into(),
-        mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
-            center: Vec3::ZERO,
-            radii: Vec3::new(0.064, 0.029, 0.029),
-            segments: 110,
-            stacks: 90,
-        }),
-        targets: vec!["oval".into()],
-        params: MuscleParams::surface_layer(2.2, 0.01),
-        ..Default::default()
-    });
+    let mut scene = common::oval_with_skin(110, 90);
     scene.settings.threads = 4;
     scene.settings.parallel_threshold = 0;
     let mut solver = scene.instantiate(Path::new(".")).unwrap();

@@ -5,38 +5,26 @@
 //! method, and must stay on the muscle at its rest gap while the muscle
 //! sags, contracts and bulges.
 
+mod common;
+
 use sinew_core::closest::closest_point_triangle;
 use sinew_core::glam::Vec3;
-use sinew_core::mesh::primitives::MeshGenerator;
 use sinew_core::muscle::ConstraintKind;
-use sinew_core::muscle::{MassMode, Muscle, MuscleParams};
-use sinew_core::scene::{MeshSource, MuscleSpec, Scene, builtin};
+use sinew_core::muscle::{MassMode, Muscle};
+use sinew_core::scene::Scene;
 use sinew_core::{Solver, SolverMethod};
 use std::path::Path;
 
-/// P1's oval (held at both ends, 6 × 2.5 × 2.5 cm) under a closed skin
-/// 4 mm above it, with its own, finer tessellation. Four substeps of ten
-/// iterations (Jacobi's split corrections converge slowest): the skin
-/// is free to slide, so under gravity only its edges' tension holds its
-/// sides up, and that tension must reach around the skin within a
-/// substep (one 1/60 s substep of 5 iterations lets its sides fall 2.7 mm
-/// a frame and its edges stretch ×2).
+/// P1's oval under its skin ([`common::oval_with_skin`], 14 × 12). Four
+/// substeps of ten iterations (Jacobi's split corrections converge
+/// slowest): the skin is free to slide, so under gravity only its edges'
+/// tension holds its sides up, and that tension must reach around the skin
+/// within a substep (one 1/60 s substep of 5 iterations lets its sides
+/// fall 2.7 mm a frame and its edges stretch ×2).
 fn oval_with_skin() -> Scene {
-    let mut scene = builtin("P1").expect("built-in scene");
+    let mut scene = common::oval_with_skin(14, 12);
     scene.settings.substeps = 4;
     scene.settings.iterations = 10;
-    scene.muscles.push(MuscleSpec {
-        name: "skin".into(),
-        mesh: MeshSource::Generator(MeshGenerator::Ellipsoid {
-            center: Vec3::ZERO,
-            radii: Vec3::new(0.064, 0.029, 0.029),
-            segments: 14,
-            stacks: 12,
-        }),
-        targets: vec!["oval".into()],
-        params: MuscleParams::surface_layer(2.2, 0.01),
-        ..Default::default()
-    });
     scene
 }
 
