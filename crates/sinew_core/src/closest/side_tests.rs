@@ -201,6 +201,44 @@ fn a_remembered_side_holds_within_the_distance_it_was_taken_at() {
     assert!(taken > 0);
 }
 
+/// A vertex moving around a damaged bone in steps of a few millimetres
+/// asks for a winding number only where no decision is within reach (a
+/// third of the steps out of every ball are read by reaching one), and
+/// every side read is the one a winding number there gives, and the right
+/// one.
+#[test]
+fn a_side_reached_from_a_decision_is_the_winding_numbers() {
+    for hole in [false, true] {
+        let t = damaged_bracket(hole);
+        let clear = |q| !hole || (t.winding_number(q) - 0.5).abs() > 0.3;
+        // From each query of the grid, a drift of 2 mm in steps of 0.5 mm.
+        let path: Vec<Vec3> = bracket_queries(&t)
+            .into_iter()
+            .flat_map(|q| (0..5).map(move |s| q + Vec3::new(0.3, 0.4, 0.0) * (s as f32 * 1e-3)))
+            .filter(|&q| t.closest(q, None).unwrap().distance > 0.3e-3)
+            .filter(|&q| truth(q).is_some() && clear(q))
+            .collect();
+        let mut memo = SideMemo::default();
+        let (mut decided, mut reached) = (0, 0);
+        for q in path {
+            let hit = t.closest(q, None).unwrap();
+            let before = memo.newest();
+            let settled = t.settle_side(q, hit, &mut memo, 0);
+            let after = memo.newest();
+            decided += usize::from(after[0] != before[0]);
+            reached += usize::from(after[1] != before[1]);
+            let by_winding = t.settle_side(q, hit, &mut SideMemo::default(), 0);
+            assert_eq!(settled.is_inside(), by_winding.is_inside(), "{q}");
+            assert_eq!(settled.is_inside(), truth(q).unwrap(), "{q}");
+        }
+        // A third of the steps out of every ball reach one.
+        assert!(
+            decided > 0 && 3 * reached > reached + decided,
+            "hole {hole}: {reached} reached, {decided} decided"
+        );
+    }
+}
+
 /// A vertex near two bones asks about both in turn (its closest data, its
 /// bone contacts): the decision about one survives a decision about the
 /// other in between, so asking again takes no new winding number.
