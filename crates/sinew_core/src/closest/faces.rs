@@ -18,7 +18,6 @@
 //!    for a sheet outside the bone and 1 (or more) for one inside another
 //!    shell.
 
-use super::TriangleBvh;
 use super::winding::WindingTree;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -120,7 +119,6 @@ pub(super) fn orient(triangles: &[[u32; 3]], edges: &EdgeTable) -> Vec<[u32; 3]>
 pub(super) fn classify(
     positions: &[Vec3],
     oriented: &[[u32; 3]],
-    bvh: &TriangleBvh,
     tree: &WindingTree,
 ) -> Vec<FaceKind> {
     oriented
@@ -131,7 +129,7 @@ pub(super) fn classify(
             // cancels out of the mean (on it, its solid angle is undefined).
             let (centre, normal) = ((a + b + c) / 3.0, (b - a).cross(c - a).normalize_or_zero());
             let step = 1e-4 * (a.distance(b) + b.distance(c) + c.distance(a));
-            let at = |p: Vec3| tree.winding_number(bvh, positions, oriented, p);
+            let at = |p: Vec3| tree.winding_number(p);
             let w = 0.5 * (at(centre + normal * step) + at(centre - normal * step));
             if w < 0.25 {
                 FaceKind::Outside

@@ -102,7 +102,7 @@ impl PseudoNormals {
         } else {
             let oriented = faces::orient(triangles, &edges);
             let tree = WindingTree::new(bvh, positions, &oriented);
-            let kind = faces::classify(positions, &oriented, bvh, &tree);
+            let kind = faces::classify(positions, &oriented, &tree);
             (kind, triangles, Some((oriented, tree)))
         };
         let oriented = winding.as_ref().map_or(oriented, |(o, _)| o.as_slice());
@@ -336,18 +336,13 @@ impl TargetSurface {
             // A broken surface's "inside" (or no answer): a wrong "inside"
             // throws the vertex through the bone, so the winding number
             // decides, remembered for the next call nearby.
-            (_, Some((oriented, tree))) => match memo.side_at(bone, q) {
+            (_, Some((_, tree))) => match memo.side_at(bone, q) {
                 Some(side) => side,
                 None => match self.reached_side(query, q, (hit.distance, hit.triangle), memo, bone)
                 {
                     Some(side) => side,
                     None => {
-                        let w = tree.winding_number(
-                            &self.geometry.bvh,
-                            &self.geometry.positions,
-                            oriented,
-                            q,
-                        );
+                        let w = tree.winding_number(q);
                         let side = 0.5 - w;
                         let distance = self
                             .closest_within(query, Some(hit.triangle), f32::MAX)
