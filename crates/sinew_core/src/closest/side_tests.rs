@@ -84,6 +84,14 @@ fn truth(q: Vec3) -> Option<bool> {
     ((w - 0.5).abs() > 0.3).then_some(w > 0.5)
 }
 
+/// Whether a point has a side a test can judge: the undamaged bracket's
+/// winding number is decisive there, and beside the hole of `t` (a
+/// [`damaged_bracket`] with `hole`) the damaged surface's own is too (it is
+/// about ½ there: no side is right).
+fn has_a_side(t: &TargetSurface, hole: bool, q: Vec3) -> bool {
+    truth(q).is_some() && (!hole || (t.winding_number(q) - 0.5).abs() > 0.3)
+}
+
 /// Query points on a grid around the bracket, 0.3–6 mm from it.
 fn bracket_queries(t: &TargetSurface) -> Vec<Vec3> {
     let mut out = Vec::new();
@@ -171,12 +179,9 @@ fn a_sharp_edge_reads_every_side_right_from_its_pseudo_normals() {
 fn a_flipped_wall_a_loose_sheet_and_a_hole_are_read_by_the_winding_number() {
     for hole in [false, true] {
         let t = damaged_bracket(hole);
-        // Beside the hole the damaged surface's own winding number is
-        // about ½: no side is right there.
-        let clear = |q| !hole || (t.winding_number(q) - 0.5).abs() > 0.3;
         let queries: Vec<Vec3> = bracket_queries(&t)
             .into_iter()
-            .filter(|&q| truth(q).is_some() && clear(q))
+            .filter(|&q| has_a_side(&t, hole, q))
             .collect();
         assert!(queries.len() > 300, "{}", queries.len());
         let truth = |q| truth(q).unwrap();
@@ -210,13 +215,12 @@ fn a_remembered_side_holds_within_the_distance_it_was_taken_at() {
 fn a_side_reached_from_a_decision_is_the_winding_numbers() {
     for hole in [false, true] {
         let t = damaged_bracket(hole);
-        let clear = |q| !hole || (t.winding_number(q) - 0.5).abs() > 0.3;
         // From each query of the grid, a drift of 2 mm in steps of 0.5 mm.
         let path: Vec<Vec3> = bracket_queries(&t)
             .into_iter()
             .flat_map(|q| (0..5).map(move |s| q + Vec3::new(0.3, 0.4, 0.0) * (s as f32 * 1e-3)))
             .filter(|&q| t.closest(q, None).unwrap().distance > 0.3e-3)
-            .filter(|&q| truth(q).is_some() && clear(q))
+            .filter(|&q| has_a_side(&t, hole, q))
             .collect();
         let mut memo = SideMemo::default();
         let (mut decided, mut reached) = (0, 0);
