@@ -46,15 +46,19 @@ struct Sample {
     arc: f32,
 }
 
-/// The bent line in one pose (see the module docs). A fixed array: built
+/// The bent line in one pose (see the module docs). Fixed arrays: built
 /// for every held muscle in every substep, without allocating.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BentLine {
     samples: [Sample; SAMPLES + 1],
+    /// For each of [`SAMPLES`] even steps `j / SAMPLES` of the arc
+    /// fraction, the first sample at or past it: where the search for a
+    /// fraction in the next step starts ([`BentLine::segment`]).
+    first_past: [u8; SAMPLES],
     /// `σ`.
     stretch: f32,
-    /// [`LineShape::swell`].
-    swell: f32,
+    /// The belly's section scale, [`LineShape::swell`] ÷ `√σ`.
+    belly: f32,
 }
 
 impl BentLine {
@@ -136,11 +140,33 @@ impl BentLine {
         } else {
             1.0
         };
+        let first_past = std::array::from_fn(|j| {
+            let step = j as f32 / SAMPLES as f32;
+            samples.partition_point(|s| s.arc < step) as u8
+        });
         Self {
             samples,
+            first_past,
             stretch,
-            swell: shape.swell,
+            belly: shape.swell / stretch.sqrt(),
         }
+    }
+
+    /// The sample ending the segment arc fraction `t` (in `(0, 1)`) lies
+    /// in: the first at or past `t`, at least 1 and at most [`SAMPLES`].
+    /// It starts from the sample [`BentLine::first_past`] gives for the
+    /// step below `t`'s and walks on (one or two samples where the
+    /// samples are spread evenly by arc), where a binary search over the
+    /// samples took six unpredictable steps for every particle.
+    fn segment(&self, t: f32) -> usize {
+        // A whole step below `t`: its start is never past the answer.
+        let below = (t * SAMPLES as f32) as usize;
+        let step = below.saturating_sub(1).min(SAMPLES - 1);
+        let mut k = usize::from(self.first_past[step]);
+        while k <= SAMPLES && self.samples[k].arc < t {
+            k += 1;
+        }
+        k.clamp(1, SAMPLES)
     }
 
     /// The goal of a rest offset `u` from the line's rest origin (`axis`
@@ -157,11 +183,8 @@ impl BentLine {
         }
         let t = along / rest_length;
         let ramp = smoothstep(t.min(1.0 - t) / END_ZONE);
-        let scale = 1.0 + (self.swell / self.stretch.sqrt() - 1.0) * ramp;
-        let k = self
-            .samples
-            .partition_point(|s| s.arc < t)
-            .clamp(1, SAMPLES);
+        let scale = 1.0 + (self.belly - 1.0) * ramp;
+        let k = self.segment(t);
         let (a, b) = (self.samples[k - 1], self.samples[k]);
         let f = if b.arc > a.arc {
             ((t - a.arc) / (b.arc - a.arc)).clamp(0.0, 1.0)
@@ -243,6 +266,35 @@ mod tests {
             (radius - 0.1 / line.stretch.sqrt()).abs() < 1e-3,
             "{radius}"
         );
+    }
+
+    /// The segment found from the steps' table is the binary search's
+    /// over the samples, for fractions on, just before and just after
+    /// every sample and in between, on a line bent hard enough that its
+    /// samples are spread unevenly by arc.
+    #[test]
+    fn the_segment_from_the_steps_is_the_searched_one() {
+        let turn = Quat::from_rotation_z(2.5);
+        let shape = LineShape { bend: 3.0, ..BENT };
+        let i = Vec3::new(0.3, 0.2, 0.0);
+        let line = BentLine::new(Vec3::ZERO, i, [Quat::IDENTITY, turn], AXIS, 1.0, shape, 4.0);
+        let gaps: Vec<f32> = (line.samples.windows(2))
+            .map(|w| w[1].arc - w[0].arc)
+            .collect();
+        let (least, most) =
+            (gaps.iter()).fold((f32::MAX, 0.0f32), |(l, m), &g| (l.min(g), m.max(g)));
+        assert!(most > 2.0 * least, "{least} … {most}");
+        let mut fractions: Vec<f32> = (1..10_000).map(|i| i as f32 / 10_000.0).collect();
+        for s in &line.samples {
+            fractions.extend([s.arc.next_down(), s.arc, s.arc.next_up()]);
+        }
+        for t in fractions.into_iter().filter(|t| *t > 0.0 && *t < 1.0) {
+            let searched = line
+                .samples
+                .partition_point(|s| s.arc < t)
+                .clamp(1, SAMPLES);
+            assert_eq!(line.segment(t), searched, "{t}");
+        }
     }
 
     #[test]
