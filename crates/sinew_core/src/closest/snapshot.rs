@@ -38,13 +38,28 @@ impl TargetSurface {
 
     /// The largest squared distance of `positions` from those the BVH was
     /// fitted to (the slack squared), NaN or infinite when a position is
-    /// not finite: one pass with a NaN-propagating maximum.
+    /// not finite: one pass with a NaN-propagating maximum, kept in four
+    /// lanes (every fourth position each) so that four compare-and-select
+    /// chains run side by side instead of one; a maximum does not depend
+    /// on the order it is taken in, so the result is the one-lane pass's.
     pub fn moved_squared(&self, positions: &[Vec3]) -> f32 {
-        positions
-            .iter()
-            .zip(&self.geometry.fitted)
-            .map(|(p, f)| p.distance_squared(*f))
-            .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m })
+        let fitted = &self.geometry.fitted[..positions.len().min(self.geometry.fitted.len())];
+        let positions = &positions[..fitted.len()];
+        let mut lanes = [0.0f32; 4];
+        let (whole, rest) = (positions.len() / 4 * 4, positions.len() % 4);
+        for (p, f) in positions[..whole]
+            .chunks_exact(4)
+            .zip(fitted[..whole].chunks_exact(4))
+        {
+            for j in 0..4 {
+                lanes[j] = nan_max(lanes[j], p[j].distance_squared(f[j]));
+            }
+        }
+        for j in 0..rest {
+            let d = positions[whole + j].distance_squared(fitted[whole + j]);
+            lanes[j] = nan_max(lanes[j], d);
+        }
+        lanes.into_iter().fold(0.0, nan_max)
     }
 
     /// [`TargetSurface::publish`] of positions staged beforehand, with
@@ -84,4 +99,10 @@ impl TargetSurface {
         g.fitted.clone_from(&g.positions);
         self.slack = 0.0;
     }
+}
+
+/// The larger of `m` and `d`, or NaN where either is.
+#[inline(always)]
+fn nan_max(m: f32, d: f32) -> f32 {
+    if d > m || d.is_nan() { d } else { m }
 }

@@ -104,3 +104,34 @@ fn a_staged_publish_gives_the_snapshot_and_slack_of_a_copying_one() {
     assert_eq!(swapped.positions(), moved);
     assert!(bad[3].x.is_nan(), "the buffer keeps what was staged");
 }
+
+/// The largest move, kept in four lanes, is the one-lane pass's maximum to
+/// the bit for any length (a remainder in any lane), and NaN or infinite
+/// wherever a position that is not finite lies.
+#[test]
+fn the_largest_move_is_the_one_lane_maximum() {
+    let t = ellipsoid_target();
+    let fitted = t.positions().to_vec();
+    let one_lane = |positions: &[Vec3]| {
+        (positions.iter().zip(&fitted))
+            .map(|(p, f)| p.distance_squared(*f))
+            .fold(0.0f32, |m, d| if d > m || d.is_nan() { d } else { m })
+    };
+    for n in [0, 1, 2, 3, 4, 5, 7, 8, 13, fitted.len()] {
+        let moved: Vec<Vec3> = (fitted[..n].iter().enumerate())
+            .map(|(i, p)| *p + 0.001 * jitter(i + 7 * n))
+            .collect();
+        assert_eq!(
+            t.moved_squared(&moved).to_bits(),
+            one_lane(&moved).to_bits(),
+            "{n}"
+        );
+        for k in 0..n {
+            let mut bad = moved.clone();
+            bad[k].y = f32::NAN;
+            assert!(t.moved_squared(&bad).is_nan(), "{n}: NaN at {k}");
+            bad[k].y = f32::INFINITY;
+            assert_eq!(t.moved_squared(&bad), f32::INFINITY, "{n}: infinite at {k}");
+        }
+    }
+}
