@@ -46,10 +46,18 @@ pub enum FiberMode {
 /// Rest data for an activation-dependent rest length.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ActivationRest {
-    /// Rest edge vector `r_a − r_b`.
-    pub edge: Vec<Vec3>,
-    /// Unit fibre direction `u` of the edge (sign-aligned mean of the two ends).
-    pub fiber: Vec<Vec3>,
+    /// Rest edge vector `r_a − r_b` ([`ActivationRest::push`]).
+    edge: Vec<Vec3>,
+    /// Unit fibre direction `u` of the edge (sign-aligned mean of the two
+    /// ends).
+    fiber: Vec<Vec3>,
+    /// `e · u` of each edge: its length along the fibre at rest.
+    along: Vec<f32>,
+    /// `|e − (e · u) u|²` of each edge: its squared length across the
+    /// fibre at rest. With `along`, what the rotation-invariant rest length
+    /// reads of the edge, taken once rather than every time the activation
+    /// changes (the same operations: the same bits).
+    across_squared: Vec<f32>,
     /// How contractile each constraint is, `k` in `[0, 1]` (1 minus its
     /// ends' mean tendon mask): its shortening and bulge are `1 + (λ − 1) k`
     /// and `1 + (β − 1) k` (its contraction `c k` in the paper's formula).
@@ -62,6 +70,27 @@ pub struct ActivationRest {
 }
 
 impl ActivationRest {
+    /// Adds a constraint's rest data: its rest edge `r_a − r_b` and the
+    /// unit fibre across it (see [`ActivationRest::edge_fiber`]).
+    pub fn push(&mut self, edge: Vec3, fiber: Vec3) {
+        let along = edge.dot(fiber);
+        self.edge.push(edge);
+        self.fiber.push(fiber);
+        self.along.push(along);
+        self.across_squared
+            .push((edge - along * fiber).length_squared());
+    }
+
+    /// Number of constraints it holds rest data for.
+    pub fn len(&self) -> usize {
+        self.edge.len()
+    }
+
+    /// True when it holds none.
+    pub fn is_empty(&self) -> bool {
+        self.edge.is_empty()
+    }
+
     /// Unit fibre of an edge from its two end fibres (SPEC §5.1 guards 1–2).
     pub fn edge_fiber(fa: Vec3, fb: Vec3) -> Vec3 {
         let fb = if fa.dot(fb) < 0.0 { -fb } else { fb };
@@ -85,18 +114,16 @@ impl ActivationRest {
     }
 
     fn scaled_length(&self, i: usize, mode: FiberMode, s: &ActivationScale) -> f32 {
-        let (e, u) = (self.edge[i], self.fiber[i]);
         match mode {
             FiberMode::PaperExact => {
+                let (e, u) = (self.edge[i], self.fiber[i]);
                 let phi = u.abs();
                 let eps = e / (Vec3::ONE - s.a0 * s.contraction * phi);
                 (eps * (Vec3::ONE - s.a * s.contraction * phi)).length()
             }
             FiberMode::RotationInvariant => {
-                let along = e.dot(u);
-                let across = e - along * u;
-                ((s.bulge * s.bulge) * across.length_squared() + (s.shortening * along).powi(2))
-                    .sqrt()
+                let (along, across_squared) = (self.along[i], self.across_squared[i]);
+                ((s.bulge * s.bulge) * across_squared + (s.shortening * along).powi(2)).sqrt()
             }
         }
     }
@@ -287,4 +314,48 @@ pub(super) fn project_pair(
     let mut to_b = pb;
     to_b -= wb * n;
     Some((dl, to_a, to_b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rotation-invariant rest length from the parts taken at
+    /// [`ActivationRest::push`] is, to the bit, the one formed from the
+    /// edge and the fibre each time, for edges at every angle to their
+    /// fibre, shortening, bulging, and partly contractile.
+    #[test]
+    fn the_rest_length_from_the_parts_is_the_one_from_the_edge() {
+        let mut act = ActivationRest::default();
+        let mut edges = Vec::new();
+        for i in 0..64 {
+            let k = i as f32;
+            let edge = Vec3::new((k * 1.3).sin(), (k * 0.7).cos(), (k * 2.1).sin()) * 0.01;
+            let a = Vec3::new((k * 0.9).cos(), (k * 1.9).sin(), 0.4).normalize();
+            let b = Vec3::new((k * 0.3).sin(), 0.6, (k * 1.1).cos()).normalize();
+            let fiber = ActivationRest::edge_fiber(a, b);
+            act.push(edge, fiber);
+            edges.push((edge, fiber));
+        }
+        act.contractile = (0..64).map(|i| (i % 5) as f32 / 4.0).collect();
+        let mode = FiberMode::RotationInvariant;
+        for (a, ratio) in [(0.0, None), (0.6, Some(1.2)), (1.0, Some(1.5))] {
+            let s = ActivationScale::new(a, 0.1, 0.7, ratio);
+            for (i, &(e, u)) in edges.iter().enumerate() {
+                let k = act.contractile[i];
+                let (shortening, bulge) =
+                    (1.0 + (s.shortening - 1.0) * k, 1.0 + (s.bulge - 1.0) * k);
+                let along = e.dot(u);
+                let across = e - along * u;
+                let formed = ((bulge * bulge) * across.length_squared()
+                    + (shortening * along).powi(2))
+                .sqrt();
+                assert_eq!(
+                    act.rest_length(i, mode, &s).to_bits(),
+                    formed.to_bits(),
+                    "{i}, a {a}"
+                );
+            }
+        }
+    }
 }

@@ -327,11 +327,8 @@ fn push_at_rest(
         }
         let (pa, pb) = (rest[a as usize], rest[b as usize]);
         batch.push(ParticleId::new(a), ParticleId::new(b), pa.distance(pb));
-        act.edge.push(pa - pb);
-        act.fiber.push(ActivationRest::edge_fiber(
-            fibers[a as usize],
-            fibers[b as usize],
-        ));
+        let fiber = ActivationRest::edge_fiber(fibers[a as usize], fibers[b as usize]);
+        act.push(pa - pb, fiber);
     }
     act
 }
