@@ -368,10 +368,10 @@ impl SideMemo {
 
 impl TargetSurface {
     /// The side of world `query` (local `q`, whose closest point found so
-    /// far is `distance` away, on `hit_triangle`) as a ball free of the surface reaching the
-    /// nearest of `memo`'s winding-number decisions about `bone` tells it
-    /// ([`SideMemo`]), remembered in `memo`; `None` where no decision is
-    /// near enough for one bounded search to tell.
+    /// far is `distance` away, on `hit_triangle`) as a ball free of the
+    /// surface reaching the nearest of `memo`'s winding-number decisions
+    /// about `bone` tells it ([`SideMemo`]), remembered in `memo`; `None`
+    /// where no decision is near enough for one bounded search to tell.
     fn reached_side(
         &self,
         query: Vec3,
