@@ -81,16 +81,6 @@ impl ActivationRest {
             .push((edge - along * fiber).length_squared());
     }
 
-    /// Number of constraints it holds rest data for.
-    pub fn len(&self) -> usize {
-        self.edge.len()
-    }
-
-    /// True when it holds none.
-    pub fn is_empty(&self) -> bool {
-        self.edge.is_empty()
-    }
-
     /// Unit fibre of an edge from its two end fibres (SPEC §5.1 guards 1–2).
     pub fn edge_fiber(fa: Vec3, fb: Vec3) -> Vec3 {
         let fb = if fa.dot(fb) < 0.0 { -fb } else { fb };
