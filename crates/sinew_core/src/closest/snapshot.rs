@@ -44,20 +44,19 @@ impl TargetSurface {
     /// on the order it is taken in, so the result is the one-lane pass's.
     pub fn moved_squared(&self, positions: &[Vec3]) -> f32 {
         let fitted = &self.geometry.fitted[..positions.len().min(self.geometry.fitted.len())];
-        let positions = &positions[..fitted.len()];
+        let (p4, f4) = (
+            positions[..fitted.len()].chunks_exact(4),
+            fitted.chunks_exact(4),
+        );
+        let tail = p4.remainder().iter().zip(f4.remainder());
         let mut lanes = [0.0f32; 4];
-        let (whole, rest) = (positions.len() / 4 * 4, positions.len() % 4);
-        for (p, f) in positions[..whole]
-            .chunks_exact(4)
-            .zip(fitted[..whole].chunks_exact(4))
-        {
+        for (p, f) in p4.zip(f4) {
             for j in 0..4 {
                 lanes[j] = nan_max(lanes[j], p[j].distance_squared(f[j]));
             }
         }
-        for j in 0..rest {
-            let d = positions[whole + j].distance_squared(fitted[whole + j]);
-            lanes[j] = nan_max(lanes[j], d);
+        for (lane, (p, f)) in lanes.iter_mut().zip(tail) {
+            *lane = nan_max(*lane, p.distance_squared(*f));
         }
         lanes.into_iter().fold(0.0, nan_max)
     }
