@@ -176,6 +176,10 @@ pub struct DistanceBatch {
     /// held shape, [`crate::muscle::MuscleParams::rest_follows_hold`]);
     /// empty otherwise.
     pub own_rest: Vec<f32>,
+    /// Each constraint's length in the muscle's rest shape (`r₀` of a
+    /// rest length that follows the held shape), taken once while `rest`
+    /// follows it; empty otherwise. Units: m (scene units).
+    pub shape_length: Vec<f32>,
 }
 
 impl DistanceBatch {

@@ -131,9 +131,7 @@ impl Muscle {
         // A held shape (the binding the solver or this build makes for
         // `hold_shape`, not a skin's) may follow the line of action.
         let hold_line = (params.hold_shape && binding.as_ref().is_none_or(|b| b.holds_shape))
-            .then(|| {
-                hold_line::for_frame(params.hold_frame, &mesh.positions, &held, &bone_transform)
-            })
+            .then(|| hold_line::for_frame(params.hold_frame, &rest, &held, &bone_transform))
             .flatten();
         let binding = binding.or_else(|| {
             params

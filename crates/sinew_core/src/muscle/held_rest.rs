@@ -40,9 +40,7 @@ impl Muscle {
         let Some(hold) = &self.hold_line else {
             return;
         };
-        self.held_goals.clear();
-        self.held_goals
-            .extend(self.rest.iter().map(|&r| hold.goal_of(line, r)));
+        hold.goals_into(line, &self.rest, &mut self.held_goals);
         let c = &mut self.constraints;
         for (goal, b) in c.bind.goal.iter_mut().zip(&self.binding) {
             *goal = self.held_goals[b.vertex.index()];
@@ -65,24 +63,33 @@ impl Muscle {
                 batch.rest.copy_from_slice(&batch.own_rest);
                 batch.own_rest.clear();
             }
+            batch.shape_length.clear();
         }
     }
 }
 
 /// One batch's rest lengths from the goals `goals` (see the module docs;
-/// `across` is `√λ`).
+/// `across` is `√λ`); `r₀` of each constraint, the distance of its
+/// particles at `rest`, is taken the first time and kept in the batch.
 fn follow(batch: &mut DistanceBatch, rest: &[glam::Vec3], goals: &[glam::Vec3], across: f32) {
     if batch.own_rest.len() != batch.rest.len() {
         batch.own_rest.clone_from(&batch.rest);
     }
-    for k in 0..batch.rest.len() {
-        let (a, b) = (batch.a[k].index(), batch.b[k].index());
-        let r0 = rest[a].distance(rest[b]);
+    if batch.shape_length.len() != batch.rest.len() {
+        batch.shape_length = (batch.a.iter().zip(&batch.b))
+            .map(|(a, b)| rest[a.index()].distance(rest[b.index()]))
+            .collect();
+    }
+    let n = batch.rest.len();
+    let (a, b, r0s) = (&batch.a[..n], &batch.b[..n], &batch.shape_length[..n]);
+    let (own, rests) = (&batch.own_rest[..n], &mut batch.rest[..n]);
+    for k in 0..n {
+        let r0 = r0s[k];
         if r0 <= 0.0 {
             continue;
         }
-        let q = goals[a].distance(goals[b]) / r0;
-        batch.rest[k] = followed_rest(r0, batch.own_rest[k], q, across);
+        let q = goals[a[k].index()].distance(goals[b[k].index()]) / r0;
+        rests[k] = followed_rest(r0, own[k], q, across);
     }
 }
 
@@ -117,6 +124,44 @@ mod tests {
         assert!(close(followed_rest(2.0, 1.3, 0.8, 1.0), 1.3));
         // Across (f ≥ 1): the bulge on the held length.
         assert!(close(followed_rest(1.0, 1.2, 0.9, 0.8), 1.2 * 0.9 * 0.8));
+    }
+
+    /// Each rest length follows the goals through `r₀`, the distance of
+    /// its particles at rest, taken at the first call and kept in the
+    /// batch: the same lengths as `r₀` taken every time, over goals that
+    /// change between calls, and taken again for a batch that grew.
+    #[test]
+    fn the_rest_shape_lengths_taken_once_are_the_rest_distances() {
+        use super::follow;
+        use crate::constraints::{DistanceBatch, ParticleId};
+        use glam::Vec3;
+        let rest: Vec<Vec3> = (0..6)
+            .map(|i| Vec3::new(i as f32 * 0.3, (i % 2) as f32 * 0.2, (i * i) as f32 * 0.01))
+            .collect();
+        let mut batch = DistanceBatch::default();
+        for (a, b) in [(0, 1), (1, 2), (2, 3), (0, 4), (4, 5)] {
+            let length = rest[a].distance(rest[b]) * 0.8;
+            batch.push(ParticleId::from_index(a), ParticleId::from_index(b), length);
+        }
+        let expected = |batch: &DistanceBatch, goals: &[Vec3], across: f32| -> Vec<f32> {
+            (0..batch.len())
+                .map(|k| {
+                    let (a, b) = (batch.a[k].index(), batch.b[k].index());
+                    let r0 = rest[a].distance(rest[b]);
+                    let q = goals[a].distance(goals[b]) / r0;
+                    followed_rest(r0, batch.own_rest[k], q, across)
+                })
+                .collect()
+        };
+        for (call, stretch) in [1.0f32, 1.3, 0.7].into_iter().enumerate() {
+            let goals: Vec<Vec3> = rest.iter().map(|r| *r * stretch + Vec3::Y).collect();
+            if call == 2 {
+                batch.push(ParticleId::new(3), ParticleId::new(5), 0.5);
+            }
+            follow(&mut batch, &rest, &goals, 0.9);
+            assert_eq!(batch.shape_length.len(), batch.len());
+            assert_eq!(batch.rest, expected(&batch, &goals, 0.9), "call {call}");
+        }
     }
 
     /// T5 at its first flexion's peak: with its rest lengths following the

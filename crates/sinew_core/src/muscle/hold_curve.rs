@@ -28,6 +28,7 @@
 //! over the belly.
 
 use super::LineShape;
+use super::hold_line::RestOffset;
 use glam::{Quat, Vec3};
 
 /// Samples along the curve (the goal interpolates between them).
@@ -166,9 +167,11 @@ impl BentLine {
         k.clamp(1, SAMPLES)
     }
 
-    /// The goal of a rest offset `u` from the line's rest origin (`axis`
-    /// and `rest_length` as given to [`BentLine::new`]).
-    pub fn goal(&self, axis: Vec3, rest_length: f32, u: Vec3) -> Vec3 {
+    /// The goal of a rest point whose offset from the line's rest origin
+    /// is `offset` (`axis` and `rest_length` as given to [`BentLine::new`],
+    /// the offset taken about them).
+    pub fn goal(&self, axis: Vec3, rest_length: f32, offset: &RestOffset) -> Vec3 {
+        let u = offset.u;
         let along = axis.dot(u);
         let across = u - along * axis;
         let [first, last] = [self.samples[0], self.samples[SAMPLES]];
@@ -178,9 +181,10 @@ impl BentLine {
         if along >= rest_length {
             return last.point + last.frame * (u - rest_length * axis);
         }
-        let t = along / rest_length;
-        let ramp = smoothstep(t.min(1.0 - t) / END_ZONE);
-        let scale = 1.0 + (self.belly - 1.0) * ramp;
+        // `along / rest_length`, within (0, 1) here, which its clamp in
+        // the offset leaves as it is; and the section's ramp there.
+        let t = offset.t;
+        let scale = 1.0 + (self.belly - 1.0) * offset.ramp;
         let k = self.segment(t);
         let (a, b) = (self.samples[k - 1], self.samples[k]);
         let f = if b.arc > a.arc {
@@ -195,6 +199,13 @@ impl BentLine {
         let frame = a.frame.lerp(b.frame, f);
         a.point.lerp(b.point, f) + frame * (across * scale)
     }
+}
+
+/// How far the section at fraction `t` of the line has gone from the held
+/// rings' to the belly's: 0 at the ends, 1 beyond [`END_ZONE`] of the
+/// length from them (see the module docs).
+pub(super) fn section_ramp(t: f32) -> f32 {
+    smoothstep(t.min(1.0 - t) / END_ZONE)
 }
 
 /// `3x² − 2x³` on `[0, 1]`, clamped outside.
@@ -214,6 +225,63 @@ mod tests {
         swell: 1.0,
     };
 
+    /// The goal from an offset taken once (its fraction along the line
+    /// and section ramp) is, to the bit, the goal formed from the offset
+    /// alone, as every call formed it before: `t = a₀·u / L₀` and the ramp
+    /// at `t`, over a bent, twisted, stretched line and its ends. Seen to
+    /// fail with the ramp taken without the end zone's scale.
+    #[test]
+    fn the_goal_from_an_offset_taken_once_is_the_goal_from_the_offset() {
+        let axis = Vec3::new(0.8, 0.6, 0.0);
+        let rest_length = 0.37;
+        let shape = LineShape {
+            bend: 0.8,
+            pivot: 0.0,
+            swell: 1.15,
+        };
+        let frames = [Quat::from_rotation_z(0.3), Quat::from_rotation_y(-0.5)];
+        let o = Vec3::new(0.1, -0.2, 0.05);
+        let line = BentLine::new(
+            o,
+            o + Vec3::new(0.2, 0.35, 0.1),
+            frames,
+            axis,
+            rest_length,
+            shape,
+            4.0,
+        );
+        // The goal as formed from `u` alone.
+        let formed = |u: Vec3| {
+            let along = axis.dot(u);
+            let across = u - along * axis;
+            let [first, last] = [line.samples[0], line.samples[SAMPLES]];
+            if along <= 0.0 {
+                return first.point + first.frame * u;
+            }
+            if along >= rest_length {
+                return last.point + last.frame * (u - rest_length * axis);
+            }
+            let t = along / rest_length;
+            let ramp = smoothstep(t.min(1.0 - t) / END_ZONE);
+            let scale = 1.0 + (line.belly - 1.0) * ramp;
+            let k = line.segment(t);
+            let (a, b) = (line.samples[k - 1], line.samples[k]);
+            let f = if b.arc > a.arc {
+                ((t - a.arc) / (b.arc - a.arc)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            a.point.lerp(b.point, f) + a.frame.lerp(b.frame, f) * (across * scale)
+        };
+        for i in 0..400 {
+            let k = i as f32;
+            let side = Vec3::new((k * 1.3).sin(), (k * 2.7).cos(), (k * 0.7).sin()) * 0.05;
+            let u = axis * (rest_length * (k / 400.0 * 1.4 - 0.2)) + side;
+            let offset = RestOffset::new(u, axis, rest_length);
+            assert_eq!(line.goal(axis, rest_length, &offset), formed(u), "{u}");
+        }
+    }
+
     #[test]
     fn unturned_ends_give_the_straight_rest_line() {
         let line = BentLine::new(
@@ -231,7 +299,12 @@ mod tests {
             Vec3::new(0.5, -0.2, 0.05),
             Vec3::new(1.2, 0.1, 0.0),
         ] {
-            assert!(line.goal(AXIS, 1.0, u).distance(u) < 1e-4, "{u}");
+            assert!(
+                line.goal(AXIS, 1.0, &RestOffset::new(u, AXIS, 1.0))
+                    .distance(u)
+                    < 1e-4,
+                "{u}"
+            );
         }
     }
 
@@ -243,13 +316,25 @@ mod tests {
         let i = Vec3::new(0.7, 0.7, 0.0);
         let line = BentLine::new(Vec3::ZERO, i, [Quat::IDENTITY, turn], AXIS, 1.0, BENT, 4.0);
         // Near the first end the line runs along +X, near the far end along +Y.
-        let near_o = line.goal(AXIS, 1.0, Vec3::new(0.01, 0.0, 0.0));
+        let near_o = line.goal(
+            AXIS,
+            1.0,
+            &RestOffset::new(Vec3::new(0.01, 0.0, 0.0), AXIS, 1.0),
+        );
         assert!(near_o.y.abs() < 1e-3 && near_o.x > 0.0, "{near_o}");
-        let before_i = line.goal(AXIS, 1.0, Vec3::new(0.99, 0.0, 0.0));
+        let before_i = line.goal(
+            AXIS,
+            1.0,
+            &RestOffset::new(Vec3::new(0.99, 0.0, 0.0), AXIS, 1.0),
+        );
         let d = (i - before_i).normalize();
         assert!(d.dot(Vec3::Y) > 0.99, "{d}");
         // Beyond the far end an offset is carried by that end's frame.
-        let beyond = line.goal(AXIS, 1.0, Vec3::new(1.1, 0.05, 0.0));
+        let beyond = line.goal(
+            AXIS,
+            1.0,
+            &RestOffset::new(Vec3::new(1.1, 0.05, 0.0), AXIS, 1.0),
+        );
         assert!(
             beyond.distance(i + turn * Vec3::new(0.1, 0.05, 0.0)) < 1e-3,
             "{beyond}"
@@ -257,8 +342,16 @@ mod tests {
         // The held rings keep their section; the belly thins as the line stretches.
         // `BENT` does not swell: the belly's scale is 1 ÷ √σ, σ > 1.
         assert!(line.belly < 1.0, "{}", line.belly);
-        let ring = line.goal(AXIS, 1.0, Vec3::new(0.5, 0.1, 0.0));
-        let centre = line.goal(AXIS, 1.0, Vec3::new(0.5, 0.0, 0.0));
+        let ring = line.goal(
+            AXIS,
+            1.0,
+            &RestOffset::new(Vec3::new(0.5, 0.1, 0.0), AXIS, 1.0),
+        );
+        let centre = line.goal(
+            AXIS,
+            1.0,
+            &RestOffset::new(Vec3::new(0.5, 0.0, 0.0), AXIS, 1.0),
+        );
         let radius = ring.distance(centre);
         assert!((radius - 0.1 * line.belly).abs() < 1e-3, "{radius}");
     }
@@ -305,7 +398,11 @@ mod tests {
             BENT,
             4.0,
         );
-        let side = line.goal(AXIS, 1.0, Vec3::new(0.5, 0.1, 0.0)) - Vec3::new(0.5, 0.0, 0.0);
+        let side = line.goal(
+            AXIS,
+            1.0,
+            &RestOffset::new(Vec3::new(0.5, 0.1, 0.0), AXIS, 1.0),
+        ) - Vec3::new(0.5, 0.0, 0.0);
         let half = Quat::from_rotation_x(std::f32::consts::FRAC_PI_4) * Vec3::new(0.0, 0.1, 0.0);
         assert!(side.distance(half) < 1e-3, "{side} vs {half}");
     }

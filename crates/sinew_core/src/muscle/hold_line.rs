@@ -50,7 +50,7 @@
 //! line bends at its ends").
 
 use super::LineShape;
-use super::hold_curve::BentLine;
+use super::hold_curve::{BentLine, section_ramp};
 use super::params::HoldFrame;
 use glam::{Affine3A, Quat, Vec3};
 
@@ -72,7 +72,7 @@ pub(super) struct LineEnd {
     pub(super) held: Vec<u32>,
 }
 
-/// A muscle's line of action and its surface's rest positions about it
+/// A muscle's line of action and its particles' rest positions about it
 /// (see the module docs), resolved at build.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HoldLine {
@@ -83,8 +83,33 @@ pub struct HoldLine {
     pub(super) axis: Vec3,
     /// `L₀` (scene units).
     length: f32,
-    /// Per surface vertex: `(u, t)`.
-    offsets: Vec<(Vec3, f32)>,
+    /// Per particle given at build (the surface's first): its offset.
+    offsets: Vec<RestOffset>,
+}
+
+/// A rest point's place about the line, taken once: what the goals read
+/// of it in every pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestOffset {
+    /// `u = r − O₀`.
+    pub(super) u: Vec3,
+    /// `t = clamp(a₀·u / L₀, 0, 1)`.
+    pub(super) t: f32,
+    /// The bent line's section ramp at `t` (`hold_curve::section_ramp`).
+    pub(super) ramp: f32,
+}
+
+impl RestOffset {
+    /// The offset `u` from the rest origin about axis `a₀` of a line
+    /// `L₀` = `length` long.
+    pub(super) fn new(u: Vec3, axis: Vec3, length: f32) -> Self {
+        let t = (axis.dot(u) / length).clamp(0.0, 1.0);
+        Self {
+            u,
+            t,
+            ramp: section_ramp(t),
+        }
+    }
 }
 
 /// The stretch along the line is kept within `[1/MAX_STRETCH, MAX_STRETCH]`:
@@ -93,8 +118,10 @@ pub struct HoldLine {
 const MAX_STRETCH: f32 = 4.0;
 
 impl HoldLine {
-    /// The line of a muscle with surface `positions` (rest, world) held at
-    /// `held` (`(bone, vertex)`, `None` for a world point), bones at rest at
+    /// The line of a muscle with particles at rest at `positions` (world;
+    /// its surface first, its internal points after it, or the surface
+    /// alone) held at `held` (`(bone, vertex)`, `None` for a world point;
+    /// vertices of the surface), bones at rest at
     /// `bone_transform`: `None` when no two groups of held vertices lie on
     /// different bones (a muscle held on one bone keeps the bones' blend).
     pub fn new(
@@ -136,12 +163,8 @@ impl HoldLine {
                 held: group,
             }
         };
-        let offsets = positions
-            .iter()
-            .map(|&r| {
-                let u = r - origin;
-                (u, (axis.dot(u) / length).clamp(0.0, 1.0))
-            })
+        let offsets = (positions.iter())
+            .map(|&r| RestOffset::new(r - origin, axis, length))
             .collect();
         Some(Self {
             ends: [end(centroids[i], 1.0), end(centroids[j], -1.0)],
@@ -206,26 +229,44 @@ impl HoldLine {
         }
     }
 
-    /// Surface vertex `v`'s goal in the pose `line` (see the module docs).
+    /// Particle `v`'s goal in the pose `line` (see the module docs): a
+    /// surface vertex, or any particle the line was built over.
     #[inline]
     pub fn goal(&self, line: &LinePose, v: usize) -> Vec3 {
-        let (u, t) = self.offsets[v];
-        self.goal_at(line, u, t)
+        self.goal_at(line, &self.offsets[v])
     }
 
-    /// The goal of any rest point `r` (an internal point, say) in the pose
-    /// `line`: the same map as the surface's.
+    /// The goal of any rest point `r` in the pose `line`: the same map as
+    /// the surface's.
     pub fn goal_of(&self, line: &LinePose, r: Vec3) -> Vec3 {
-        let u = r - self.origin;
-        self.goal_at(line, u, (self.axis.dot(u) / self.length).clamp(0.0, 1.0))
+        self.goal_at(
+            line,
+            &RestOffset::new(r - self.origin, self.axis, self.length),
+        )
     }
 
-    /// The goal of the rest offset `u` from `O₀`, `t` its clamped fraction
-    /// along the line.
+    /// The goals of particles at rest at `rest` in the pose `line`, into
+    /// `goals`: their offsets taken at build where the line was built over
+    /// them (the same bits as [`HoldLine::goal_of`] of each), taken now
+    /// past those.
+    pub fn goals_into(&self, line: &LinePose, rest: &[Vec3], goals: &mut Vec<Vec3>) {
+        goals.clear();
+        goals.extend(
+            rest.iter()
+                .enumerate()
+                .map(|(i, &r)| match self.offsets.get(i) {
+                    Some(offset) => self.goal_at(line, offset),
+                    None => self.goal_of(line, r),
+                }),
+        );
+    }
+
+    /// The goal of the rest point at `offset`.
     #[inline]
-    fn goal_at(&self, line: &LinePose, u: Vec3, t: f32) -> Vec3 {
+    fn goal_at(&self, line: &LinePose, offset: &RestOffset) -> Vec3 {
+        let (u, t) = (offset.u, offset.t);
         if let Some(curve) = &line.curve {
-            return curve.goal(self.axis, self.length, u);
+            return curve.goal(self.axis, self.length, offset);
         }
         let along = self.axis.dot(u);
         let local = line.along * along * self.axis + line.across * (u - along * self.axis);
@@ -335,6 +376,54 @@ pub(super) mod tests {
             (g.x + half).abs() < 1e-5 && (g.z - half).abs() < 1e-5,
             "{g}"
         );
+    }
+
+    /// The goals from the offsets taken at build are, to the bit, the
+    /// goals of the rest points themselves, straight or bent, for the
+    /// particles the line was built over and for any past them; and the
+    /// bent line's goals leave the rest points (checked to fail with a
+    /// section ramp taken from the unclamped fraction).
+    #[test]
+    fn goals_from_the_offsets_taken_at_build_are_the_rest_points_goals() {
+        let (mut positions, held) = bar();
+        // Points before, inside and past the line, off its axis.
+        positions.extend([
+            Vec3::new(-0.2, 0.05, 0.0),
+            Vec3::new(0.1, -0.03, 0.02),
+            Vec3::new(0.93, 0.04, -0.05),
+            Vec3::new(1.3, 0.0, 0.1),
+        ]);
+        let built_over = 6;
+        let line = HoldLine::new(&positions[..built_over], &held, &|_| Affine3A::IDENTITY).unwrap();
+        let turn = Quat::from_rotation_z(0.9) * Quat::from_rotation_x(0.4);
+        let moved = |b: usize| match b {
+            1 => Affine3A::from_rotation_translation(turn, Vec3::new(-0.3, 0.6, 0.1)),
+            _ => Affine3A::IDENTITY,
+        };
+        let straight = LineShape::default();
+        let bent = LineShape {
+            bend: 1.0,
+            pivot: 0.7,
+            swell: 1.2,
+        };
+        let mut by_shape = Vec::new();
+        for shape in [straight, bent] {
+            let pose = line.pose(&moved, shape);
+            let mut goals = Vec::new();
+            line.goals_into(&pose, &positions, &mut goals);
+            assert_eq!(goals.len(), positions.len());
+            for (i, (&g, &r)) in goals.iter().zip(&positions).enumerate() {
+                assert_eq!(g, line.goal_of(&pose, r), "{i}");
+                if i < built_over {
+                    assert_eq!(g, line.goal(&pose, i), "{i}");
+                }
+            }
+            by_shape.push(goals);
+        }
+        // The bend moved the belly's goals, inside the line and past it.
+        for i in [2, 5, 6] {
+            assert!(by_shape[0][i].distance(by_shape[1][i]) > 1e-3, "{i}");
+        }
     }
 
     #[test]
