@@ -43,7 +43,8 @@
 //!     SinewSystems::Substeps        runs SinewSubstepSchedule once per substep:
 //!       SinewSystems::Integrate       bones and their targets at the substep, attachment
 //!                                     goals, prediction (passes::begin_substep_all)
-//!       SinewSystems::Iterate         runs SinewIterationSchedule once per iteration:
+//!       SinewSystems::Iterate         runs SinewIterationSchedule once per block of
+//!                                     snapshot_interval iterations (1 by default):
 //!         SinewIterationSystems::UpdateTargets   snapshots (passes::publish_all)
 //!         SinewIterationSystems::Solve           closest data and projection
 //!                                                (passes::iterate_all)
@@ -182,7 +183,9 @@ pub enum SinewSystems {
     /// In [`SinewSubstepSchedule`]: bones, their targets and attachment
     /// goals at the substep's end time, then the prediction.
     Integrate,
-    /// In [`SinewSubstepSchedule`]: runs [`SinewIterationSchedule`] N times.
+    /// In [`SinewSubstepSchedule`]: runs [`SinewIterationSchedule`] once per
+    /// block of [`SinewSettings::snapshot_interval`] iterations (N times by
+    /// default).
     Iterate,
     /// In [`SinewSubstepSchedule`]: velocities from the corrections.
     ApplyPredictions,
@@ -190,13 +193,16 @@ pub enum SinewSystems {
     WriteBack,
 }
 
-/// The sets of one solver iteration, in [`SinewIterationSchedule`].
+/// The sets of one block of solver iterations (one iteration unless
+/// [`SinewSettings::snapshot_interval`] says more), in
+/// [`SinewIterationSchedule`].
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SinewIterationSystems {
     /// Muscle snapshots published for the muscles that target them.
     UpdateTargets,
     /// Closest points on the targets and constraint projection, in one task
-    /// per muscle (or colour by colour across muscles).
+    /// per muscle running the block's iterations back to back (or colour by
+    /// colour across muscles).
     Solve,
 }
 
@@ -216,7 +222,8 @@ pub struct SinewStepSchedule;
 #[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct SinewSubstepSchedule;
 
-/// One iteration: [`SinewIterationSystems`].
+/// One block of iterations: [`SinewIterationSystems`] (the snapshots
+/// published once, then each muscle's iterations of the block).
 #[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct SinewIterationSchedule;
 

@@ -147,6 +147,11 @@ pub struct SinewSettings {
     /// [`SolverSettings::bone_contact_interval`]; the first and each
     /// muscle's last always have one). Default `1` (every iteration).
     pub bone_contact_interval: u32,
+    /// Iterations between two publications of the muscles' snapshots (as
+    /// [`SolverSettings::snapshot_interval`]): [`crate::SinewIterationSchedule`]
+    /// runs once per block of this many iterations, each muscle running the
+    /// block back to back. Default `1` (every iteration).
+    pub snapshot_interval: u32,
     /// Measure per-block time into [`SinewTimings`]. Default `true`.
     pub timers: bool,
     /// The order constraint types are projected in.
@@ -179,6 +184,7 @@ impl From<SolverSettings> for SinewSettings {
             feature_contacts: s.feature_contacts,
             walk_every_iteration: s.walk_every_iteration,
             bone_contact_interval: s.bone_contact_interval,
+            snapshot_interval: s.snapshot_interval,
             timers: s.timers,
             projection_order: s.projection_order,
         }
@@ -203,6 +209,7 @@ impl SinewSettings {
             feature_contacts: self.feature_contacts,
             walk_every_iteration: self.walk_every_iteration,
             bone_contact_interval: self.bone_contact_interval,
+            snapshot_interval: self.snapshot_interval,
             threads: self.threads,
             schedule: self.schedule,
             parallel_threshold: self.parallel_threshold,

@@ -134,6 +134,11 @@ pub struct Overrides {
     /// and each muscle's last always have one; default: the scene's).
     #[arg(long)]
     pub bone_contact_interval: Option<u32>,
+    /// Iterations between two publications of the muscles' snapshots: each
+    /// muscle runs that many iterations back to back (default: the
+    /// scene's).
+    #[arg(long)]
+    pub snapshot_interval: Option<u32>,
 }
 
 /// [`SweepSchedule`] on the command line.
@@ -163,6 +168,9 @@ impl Overrides {
         }
         if let Some(k) = self.bone_contact_interval {
             solver.settings.bone_contact_interval = k;
+        }
+        if let Some(k) = self.snapshot_interval {
+            solver.settings.snapshot_interval = k;
         }
         if let Some(s) = self.schedule {
             solver.settings.schedule = match s {

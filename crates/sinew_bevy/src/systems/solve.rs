@@ -138,13 +138,18 @@ fn cache_substep_poses(
     }
 }
 
-/// Runs the iteration schedule once per iteration.
+/// Runs the iteration schedule once per block of iterations
+/// ([`sinew_core::SolverSettings::snapshot_interval`]; once per iteration
+/// by default): the context's iteration is the block's first.
 pub(crate) fn run_iterations(world: &mut World) {
     let ctx = world.resource::<StepContext>();
     let (substep, iterations) = (ctx.substep, ctx.iterations);
-    for it in 0..iterations {
-        world.resource_mut::<StepContext>().iteration = substep.iteration(it, iterations);
+    let mut it = 0;
+    while it < iterations {
+        let block = substep.iteration(it, iterations);
+        world.resource_mut::<StepContext>().iteration = block;
         world.run_schedule(SinewIterationSchedule);
+        it = block.block_end();
     }
 }
 

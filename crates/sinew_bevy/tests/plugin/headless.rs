@@ -108,6 +108,37 @@ fn a_muscle_sitting_out_iterations_is_published_alike_by_both_drivers() {
     assert_same_bits(&plain, &app, root);
 }
 
+/// Iterations in blocks of three ([`SinewSettings::snapshot_interval`]),
+/// the brachialis sitting out after two (its block ends early): the
+/// plain driver swaps in what each muscle staged at its block's end, the
+/// plug-in runs its iteration schedule once per block and publishes in a
+/// pass; on two threads the app sweeps colour by colour across muscles
+/// for each iteration of a block, the plain solver runs each muscle's
+/// block in one task. The same bits.
+#[test]
+fn blocks_of_iterations_give_the_same_bits_in_both_drivers() {
+    for (method, schedule) in [
+        (Method::Sequential, SweepSchedule::Auto),
+        (Method::ColoredGlobal, SweepSchedule::ByColor),
+    ] {
+        let (mut scene, base) = p3();
+        assert!(scene.settings.iterations > 3);
+        scene.settings.snapshot_interval = 3;
+        scene.settings.method = method.into();
+        scene.settings.threads = 1;
+        scene.muscles[1].params.iterations = Some(2);
+        let (mut plain, mut app, root) = both_drivers(scene, &base);
+        step_both(&mut plain, &mut app, 1);
+        let mut settings = app.world_mut().resource_mut::<SinewSettings>();
+        assert_eq!(settings.snapshot_interval, 3);
+        settings.threads = 2;
+        settings.parallel_threshold = 0;
+        settings.schedule = schedule;
+        step_both(&mut plain, &mut app, 99);
+        assert_same_bits(&plain, &app, root);
+    }
+}
+
 #[test]
 fn muscles_in_parallel_give_the_same_bits() {
     let (scene, base) = p3();

@@ -614,4 +614,6 @@ mod determinism_tests;
 #[cfg(test)]
 mod shared_geometry_tests;
 #[cfg(test)]
+mod snapshot_interval_tests;
+#[cfg(test)]
 mod tests;

@@ -147,6 +147,9 @@ pub struct FrameParams {
     pub walk_every_iteration: bool,
     /// Iterations between bone contacts.
     pub bone_contact_interval: u32,
+    /// Iterations between publications of the muscles' snapshots: the
+    /// length of a block of iterations each muscle runs in one task.
+    pub snapshot_interval: u32,
     /// How coloured methods use the threads.
     pub schedule: SweepSchedule,
     /// Worker threads (`0`: every core, `1`: the calling thread only).
@@ -173,6 +176,7 @@ impl FrameParams {
             feature_contacts: settings.feature_contacts,
             walk_every_iteration: settings.walk_every_iteration,
             bone_contact_interval: settings.bone_contact_interval.max(1),
+            snapshot_interval: settings.snapshot_interval.max(1),
             schedule: settings.schedule,
             threads: settings.threads,
             parallelism,
@@ -255,6 +259,33 @@ impl IterationParams {
     /// checked against their muscles.
     pub fn first_of_substep(&self) -> bool {
         self.index == 0
+    }
+
+    /// One past the last iteration of the block this one starts
+    /// ([`SolverSettings::snapshot_interval`] iterations, fewer at the
+    /// substep's end): the snapshots published before this iteration are
+    /// read until then, and the next block starts there.
+    pub fn block_end(&self) -> u32 {
+        let interval = self.substep.frame.snapshot_interval.max(1);
+        self.index.saturating_add(interval).min(self.count)
+    }
+
+    /// Iteration `index` of the same substep.
+    pub fn at(&self, index: u32) -> Self {
+        Self { index, ..*self }
+    }
+
+    /// The iterations of the block this one starts, in order (itself first).
+    pub fn block(&self) -> impl Iterator<Item = Self> + use<> {
+        let this = *self;
+        (self.index..self.block_end()).map(move |k| this.at(k))
+    }
+
+    /// Whether this is the last iteration of its block (of the `block_end`
+    /// of the iteration that started it): what it leaves is what the next
+    /// block's snapshots publish.
+    pub fn ends_block(&self, block_end: u32) -> bool {
+        self.index + 1 >= block_end
     }
 
     /// The substep's last iteration: no iteration of the substep comes

@@ -129,16 +129,20 @@ pub fn publish_all(
     }
 }
 
-/// Closest data and projection of every muscle for iteration `it`, its
+/// Closest data and projection of every muscle for the block of
+/// iterations `it` starts ([`IterationParams::block`]; one iteration
+/// unless [`crate::SolverSettings::snapshot_interval`] says more), its
 /// time lapped on `clock` into `timings`' closest-data and project blocks.
 ///
-/// One task per muscle ([`pipeline::iterate`]; a muscle reads the others
-/// only through the published snapshots, so the split gives the same
-/// bits, and one task keeps the muscle in cache), or — for a clustered or
+/// One task per muscle running the block's iterations back to back
+/// ([`pipeline::iterate`]; a muscle reads the others only through the
+/// published snapshots, so the split gives the same bits, and one task
+/// keeps the muscle in cache), or — for a clustered or
 /// Hybrid plan whose largest muscle would leave threads idle, or when
 /// [`super::SweepSchedule::ByColor`] asks — the same phases interleaved:
 /// closest data of every muscle, colour `c` of every muscle's plan for each
-/// `c`, then every muscle's [`pipeline::finish`].
+/// `c`, then every muscle's [`pipeline::finish`], for each iteration of
+/// the block.
 pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
     pool: &WorkerPool,
     muscles: &mut [MusclePair],
@@ -163,32 +167,38 @@ pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
         clock.lap_split(slots, [closest, project], split.reads());
         return;
     };
-    timings.sweeps_by_color += 1;
-    for_each_muscle(Some(pool), muscles, |m, ws| {
-        pipeline::closest(m, ws, targets, it);
-    });
-    clock.lap(&mut timings.closest_data);
-    let mut colors = 0;
-    for (m, ws) in muscles.iter_mut() {
-        if it.runs(m) {
-            colors = colors.max(pipeline::plan_for(m, ws, it).color_count());
+    let end = it.block_end();
+    for it in it.block() {
+        let it = &it;
+        timings.sweeps_by_color += 1;
+        for_each_muscle(Some(pool), muscles, |m, ws| {
+            pipeline::closest(m, ws, targets, it);
+        });
+        clock.lap(&mut timings.closest_data);
+        let mut colors = 0;
+        for (m, ws) in muscles.iter_mut() {
+            if it.runs(m) {
+                colors = colors.max(pipeline::plan_for(m, ws, it).color_count());
+            }
         }
-    }
-    pool.install(|| {
-        use rayon::prelude::*;
-        for color in 0..colors {
-            muscles.par_iter_mut().for_each(|(m, ws)| {
-                if let Some(plan) = pipeline::sweep_plan(ws).filter(|_| it.runs(m)) {
-                    sweep::sweep_color(m, plan, color, it.substep.inv_h2);
+        pool.install(|| {
+            use rayon::prelude::*;
+            for color in 0..colors {
+                muscles.par_iter_mut().for_each(|(m, ws)| {
+                    if let Some(plan) = pipeline::sweep_plan(ws).filter(|_| it.runs(m)) {
+                        sweep::sweep_color(m, plan, color, it.substep.inv_h2);
+                    }
+                });
+            }
+        });
+        for_each_muscle(Some(pool), muscles, |m, ws| {
+            if it.runs(m) {
+                pipeline::finish(m, ws, targets, it);
+                if it.ends_block(end) || it.last_for(m) {
+                    pipeline::stage_snapshot(m, ws, targets, it);
                 }
-            });
-        }
-    });
-    for_each_muscle(Some(pool), muscles, |m, ws| {
-        if it.runs(m) {
-            pipeline::finish(m, ws, targets, it);
-            pipeline::stage_snapshot(m, ws, targets, it);
-        }
-    });
-    clock.lap(&mut timings.project);
+            }
+        });
+        clock.lap(&mut timings.project);
+    }
 }

@@ -84,9 +84,14 @@ pub fn publish_at(target: &mut TargetSurface, m: &Muscle, first_of_frame: bool) 
     }
 }
 
-/// One iteration of `m`, in one task: closest data, then the projection
-/// ([`sweep`] and [`finish`]). A muscle whose own iteration count is
-/// reached sits it out. `timer` splits the task's time between the two.
+/// The block of iterations `p` starts ([`IterationParams::block`]: one
+/// iteration unless [`crate::SolverSettings::snapshot_interval`] says
+/// more) of `m`, back to back in one task: each its closest data, then
+/// its projection ([`sweep`] and [`finish`]), against the snapshots
+/// published before `p`; the block's last (or `m`'s own last) stages
+/// `m`'s snapshot for the next block. A muscle whose own iteration count
+/// is reached sits the rest out. `timer` splits the task's time between
+/// closest data and projection.
 pub fn iterate<T: TargetSet + Sync + ?Sized>(
     m: &mut Muscle,
     ws: &mut MuscleWorkspace,
@@ -94,16 +99,21 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
     p: &IterationParams,
     timer: &TaskSplit,
 ) {
-    if !p.runs(m) {
-        return;
+    let end = p.block_end();
+    for p in p.block() {
+        if !p.runs(m) {
+            break;
+        }
+        let start = timer.start();
+        closest_data(m, ws, targets, p.closest());
+        let middle = timer.lap(start, 0);
+        sweep(m, ws, &p);
+        finish(m, ws, targets, &p);
+        if p.ends_block(end) || p.last_for(m) {
+            stage_snapshot(m, ws, targets, &p);
+        }
+        timer.lap(middle, 1);
     }
-    let start = timer.start();
-    closest_data(m, ws, targets, p.closest());
-    let middle = timer.lap(start, 0);
-    sweep(m, ws, p);
-    finish(m, ws, targets, p);
-    stage_snapshot(m, ws, targets, p);
-    timer.lap(middle, 1);
 }
 
 /// Stages `m`'s surface for its snapshot in the iteration after `p`, in

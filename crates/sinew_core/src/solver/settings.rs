@@ -195,6 +195,21 @@ pub struct SolverSettings {
     /// "Bone contacts every few iterations"). `1` = every iteration.
     /// Units: iterations. Default: `1`.
     pub bone_contact_interval: u32,
+    /// Iterations between two publications of the muscles' snapshots
+    /// (the surfaces other muscles and skins slide on): a substep's
+    /// iterations run in blocks of `k`, each muscle a block's iterations
+    /// back to back in one task, reading the snapshots published at the
+    /// block's start — Jacobi between muscles over a block, Gauss–Seidel
+    /// within each. A muscle's data then stays in cache from one iteration
+    /// to the next (from L3 on the development machine it is reloaded at
+    /// every iteration otherwise): at `5` T7's walk took ×0.72–0.78 of the
+    /// time on one and on two threads, its check figures within their
+    /// run-to-run scatter, and the fitted character's skin figures the same
+    /// (ARCHITECTURE.md, "Snapshots every few iterations"). Bones are
+    /// posed per substep and are not affected; closest points are still
+    /// found in every iteration. `1` = every iteration (the thesis).
+    /// Units: iterations. Default: `1`.
+    pub snapshot_interval: u32,
     /// Worker threads for closest data and projection, split by muscle
     /// (SPEC §9.1): `1` spawns none, `0` uses every core. Muscles read each
     /// other only through published snapshots, so the result is bit-identical
@@ -235,6 +250,7 @@ impl Default for SolverSettings {
             feature_contacts: false,
             walk_every_iteration: true,
             bone_contact_interval: 1,
+            snapshot_interval: 1,
             threads: 0,
             schedule: SweepSchedule::Auto,
             parallel_threshold: 8192,
@@ -286,6 +302,9 @@ impl SolverSettings {
         }
         if self.bone_contact_interval == 0 {
             return Err(bad("bone_contact_interval", 0.0, "must be ≥ 1"));
+        }
+        if self.snapshot_interval == 0 {
+            return Err(bad("snapshot_interval", 0.0, "must be ≥ 1"));
         }
         for (setting, value, most) in [
             ("iterations", self.iterations, MAX_ITERATIONS),

@@ -40,11 +40,15 @@ impl Solver {
             clock.lap(&mut timings.update_targets);
             self.begin_substep(&sub);
             clock.lap(&mut timings.integrate);
-            for it in 0..iterations {
-                let iteration = sub.iteration(it, iterations);
-                self.publish(&iteration);
+            // In blocks of `snapshot_interval` iterations, each against the
+            // snapshots published at its start.
+            let mut it = 0;
+            while it < iterations {
+                let block = sub.iteration(it, iterations);
+                self.publish(&block);
                 clock.lap(&mut timings.update_targets);
-                self.iterate(&iteration, &mut clock, &mut timings);
+                self.iterate(&block, &mut clock, &mut timings);
+                it = block.block_end();
             }
             self.end_substep(&sub);
             clock.lap(&mut timings.apply);
@@ -226,7 +230,8 @@ impl Solver {
         });
     }
 
-    /// Closest data and projection of every muscle.
+    /// Closest data and projection of every muscle over the block of
+    /// iterations `it` starts.
     fn iterate(&mut self, it: &IterationParams, clock: &mut Stopwatch, t: &mut StepTimings) {
         let targets = self.targets.as_slice();
         let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
