@@ -124,6 +124,10 @@ fn iterate(chain: &mut Chain, alpha: f32, parallel: bool) {
     }
 }
 
+/// Frames the reference sweep runs untimed before the timed ones: a new
+/// pool's threads are woken, and the chain brought into the cache.
+const WARM_UP_FRAMES: usize = 3;
+
 /// Median ns per constraint-iteration of the reference sweep over
 /// `constraints` constraints, `iterations` iterations per frame, on
 /// `threads` threads (1: the calling thread; 0: every core).
@@ -140,7 +144,10 @@ pub fn reference_ns(constraints: usize, iterations: usize, threads: u32) -> f64 
                 .ok()
         })
         .flatten();
-    let frames = (4_000_000 / (constraints * iterations)).clamp(5, 2000);
+    // At least 20 timed frames (T7's 72 718 × 10 gave 5, whose median
+    // still held the new pool's first wake-ups: its 2-thread figure read
+    // 2.9–5.3 ns in one afternoon), after a few untimed ones.
+    let frames = (20_000_000 / (constraints * iterations)).clamp(20, 2000);
     let mut time = || {
         chain.lambda.fill(0.0);
         let start = Instant::now();
@@ -149,9 +156,15 @@ pub fn reference_ns(constraints: usize, iterations: usize, threads: u32) -> f64 
         }
         start.elapsed().as_secs_f64() * 1e9 / (constraints * iterations) as f64
     };
-    let samples: Vec<f64> = match &pool {
-        Some(pool) => pool.install(|| (0..frames).map(|_| time()).collect()),
-        None => (0..frames).map(|_| time()).collect(),
+    let mut timed = || -> Vec<f64> {
+        for _ in 0..WARM_UP_FRAMES {
+            time();
+        }
+        (0..frames).map(|_| time()).collect()
+    };
+    let samples = match &pool {
+        Some(pool) => pool.install(timed),
+        None => timed(),
     };
     std::hint::black_box(&chain.x);
     median(samples)
