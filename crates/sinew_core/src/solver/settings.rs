@@ -202,10 +202,11 @@ pub struct SolverSettings {
     /// block's start — Jacobi between muscles over a block, Gauss–Seidel
     /// within each. A muscle's data then stays in cache from one iteration
     /// to the next (from L3 on the development machine it is reloaded at
-    /// every iteration otherwise): at `5` T7's walk took ×0.72–0.78 of the
-    /// time on one and on two threads, its check figures within their
-    /// run-to-run scatter, and the fitted character's skin figures the same
-    /// (ARCHITECTURE.md, "Snapshots every few iterations"). Bones are
+    /// every iteration otherwise): at `5` T7's walk took ×0.72–0.79 of the
+    /// time on one thread and 10.1–10.7 → 7.5–8.1 ms on two, its check
+    /// figures within their run-to-run scatter, and the fitted character's
+    /// skin figures the same (ARCHITECTURE.md, "Snapshots every few
+    /// iterations"). Bones are
     /// posed per substep and are not affected; closest points are still
     /// found in every iteration. `1` = every iteration (the thesis).
     /// Units: iterations. Default: `1`.
