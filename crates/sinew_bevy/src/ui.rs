@@ -204,6 +204,14 @@ fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
     }
     ui.add(egui::Slider::new(&mut s.iterations, 1..=50).text("iterations"));
     ui.add(egui::Slider::new(&mut s.substeps, 1..=16).text("substeps"));
+    let most = s.iterations.max(1);
+    ui.add(
+        egui::Slider::new(&mut s.snapshot_interval, 1..=most).text("snapshots every (iterations)"),
+    );
+    ui.add(
+        egui::Slider::new(&mut s.bone_contact_interval, 1..=most)
+            .text("bone contacts every (iterations)"),
+    );
     ui.add(egui::Slider::new(&mut s.time_scale, 0.05..=2.0).text("time scale"));
     ui.horizontal(|ui| {
         ui.label("gravity m/s²");
