@@ -281,11 +281,13 @@ impl IterationParams {
         (self.index..self.block_end()).map(move |k| this.at(k))
     }
 
-    /// Whether this is the last iteration of its block (of the `block_end`
-    /// of the iteration that started it): what it leaves is what the next
-    /// block's snapshots publish.
-    pub fn ends_block(&self, block_end: u32) -> bool {
-        self.index + 1 >= block_end
+    /// Whether `m` stages its snapshot after this iteration of the block
+    /// ending at `block_end` (the [`IterationParams::block_end`] of the
+    /// iteration that started it): after the block's last iteration, or
+    /// after `m`'s own last where its count ends inside the block — what
+    /// it leaves then is what the next block's snapshot publishes.
+    pub fn stages_for(&self, m: &Muscle, block_end: u32) -> bool {
+        self.index + 1 >= block_end || self.last_for(m)
     }
 
     /// The substep's last iteration: no iteration of the substep comes

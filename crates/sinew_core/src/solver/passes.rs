@@ -194,7 +194,7 @@ pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
         for_each_muscle(Some(pool), muscles, |m, ws| {
             if it.runs(m) {
                 pipeline::finish(m, ws, targets, it);
-                if it.ends_block(end) || it.last_for(m) {
+                if it.stages_for(m, end) {
                     pipeline::stage_snapshot(m, ws, targets, it);
                 }
             }

@@ -109,7 +109,7 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
         let middle = timer.lap(start, 0);
         sweep(m, ws, &p);
         finish(m, ws, targets, &p);
-        if p.ends_block(end) || p.last_for(m) {
+        if p.stages_for(m, end) {
             stage_snapshot(m, ws, targets, &p);
         }
         timer.lap(middle, 1);
