@@ -144,12 +144,9 @@ fn cache_substep_poses(
 pub(crate) fn run_iterations(world: &mut World) {
     let ctx = world.resource::<StepContext>();
     let (substep, iterations) = (ctx.substep, ctx.iterations);
-    let mut it = 0;
-    while it < iterations {
-        let block = substep.iteration(it, iterations);
+    for block in substep.blocks(iterations) {
         world.resource_mut::<StepContext>().iteration = block;
         world.run_schedule(SinewIterationSchedule);
-        it = block.block_end();
     }
 }
 

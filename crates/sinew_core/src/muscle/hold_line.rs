@@ -381,8 +381,7 @@ pub(super) mod tests {
     /// The goals from the offsets taken at build are, to the bit, the
     /// goals of the rest points themselves, straight or bent, for the
     /// particles the line was built over and for any past them; and the
-    /// bent line's goals leave the rest points (checked to fail with a
-    /// section ramp taken from the unclamped fraction).
+    /// bend moves the belly's goals (both shapes are exercised).
     #[test]
     fn goals_from_the_offsets_taken_at_build_are_the_rest_points_goals() {
         let (mut positions, held) = bar();

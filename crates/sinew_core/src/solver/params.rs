@@ -234,6 +234,17 @@ impl SubstepParams {
             count,
         }
     }
+
+    /// The first iteration of each block of the `count` this substep runs
+    /// ([`IterationParams::block`]), in order: what a driver publishes the
+    /// snapshots before and runs a block from.
+    pub fn blocks(&self, count: u32) -> impl Iterator<Item = IterationParams> + use<> {
+        let first = (count > 0).then(|| self.iteration(0, count));
+        std::iter::successors(first, move |b| {
+            let next = b.block_end();
+            (next < count).then(|| b.at(next))
+        })
+    }
 }
 
 /// An iteration's parameters.

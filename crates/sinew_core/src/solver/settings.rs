@@ -206,9 +206,9 @@ pub struct SolverSettings {
     /// time on one thread and 10.1–10.7 → 7.5–8.1 ms on two, its check
     /// figures within their run-to-run scatter, and the fitted character's
     /// skin figures the same (ARCHITECTURE.md, "Snapshots every few
-    /// iterations"). Bones are
-    /// posed per substep and are not affected; closest points are still
-    /// found in every iteration. `1` = every iteration (the thesis).
+    /// iterations"). Bones are posed per substep and are not affected;
+    /// closest points are still found in every iteration. `1` = every
+    /// iteration (the thesis).
     /// Units: iterations. Default: `1`.
     pub snapshot_interval: u32,
     /// Worker threads for closest data and projection, split by muscle

@@ -111,3 +111,24 @@ fn a_zero_interval_is_refused_and_a_long_one_is_one_block() {
     };
     assert_eq!(run(n), run(n + 7));
 }
+
+/// A substep's blocks start every `snapshot_interval` iterations, the last
+/// one short; one block per iteration by default; none without iterations.
+#[test]
+fn blocks_start_every_interval_iterations() {
+    let starts = |interval: u32, count: u32| -> Vec<(u32, u32)> {
+        let settings = SolverSettings {
+            snapshot_interval: interval,
+            ..SolverSettings::default()
+        };
+        let frame = FrameParams::new(&settings, 0, Parallelism::default());
+        (frame.substep(0).blocks(count))
+            .map(|b| (b.index, b.block_end()))
+            .collect()
+    };
+    assert_eq!(starts(3, 10), [(0, 3), (3, 6), (6, 9), (9, 10)]);
+    assert_eq!(starts(1, 3), [(0, 1), (1, 2), (2, 3)]);
+    assert_eq!(starts(5, 5), [(0, 5)]);
+    assert_eq!(starts(12, 5), [(0, 5)]);
+    assert!(starts(2, 0).is_empty());
+}

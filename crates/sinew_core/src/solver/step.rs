@@ -42,13 +42,10 @@ impl Solver {
             clock.lap(&mut timings.integrate);
             // In blocks of `snapshot_interval` iterations, each against the
             // snapshots published at its start.
-            let mut it = 0;
-            while it < iterations {
-                let block = sub.iteration(it, iterations);
+            for block in sub.blocks(iterations) {
                 self.publish(&block);
                 clock.lap(&mut timings.update_targets);
                 self.iterate(&block, &mut clock, &mut timings);
-                it = block.block_end();
             }
             self.end_substep(&sub);
             clock.lap(&mut timings.apply);
