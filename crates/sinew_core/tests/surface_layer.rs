@@ -281,3 +281,41 @@ fn a_skin_keeps_its_triangles_area_with_every_method() {
         }
     }
 }
+
+/// A skin with fewer iterations than the muscles spreads them over the
+/// substep (two of ten run at 0 and 5): in blocks of five its second
+/// iteration runs in the second block and reads the oval's snapshot
+/// published there, the oval further on in its convergence. While the oval
+/// contracts, the skin's positions then differ between blocks of five and
+/// one block of ten (were both its iterations in the first block, it would
+/// read the same snapshot either way, to the bit), and the oval's, which
+/// reads only its plane, do not.
+#[test]
+fn a_skin_with_fewer_iterations_reads_the_muscle_in_later_blocks() {
+    let run = |interval: u32| {
+        let mut scene = oval_with_skin();
+        scene.settings.snapshot_interval = interval;
+        scene.muscles[1].params.iterations = Some(2);
+        let mut solver = scene.instantiate(Path::new(".")).unwrap();
+        for frame in 0..20 {
+            solver.set_activation(0, if frame < 10 { 0.0 } else { 0.3 });
+            solver.step();
+        }
+        let bits = |m: &Muscle| -> Vec<u32> {
+            m.x.iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        let [oval, skin] = solver.muscles() else {
+            panic!("two bodies")
+        };
+        (bits(oval), bits(skin))
+    };
+    let (oval_in_blocks, skin_in_blocks) = run(5);
+    let (oval_in_one, skin_in_one) = run(10);
+    assert_eq!(oval_in_blocks, oval_in_one, "the oval reads only its plane");
+    assert_ne!(
+        skin_in_blocks, skin_in_one,
+        "the skin's second iteration read the first block's snapshot"
+    );
+}

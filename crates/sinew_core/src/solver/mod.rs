@@ -616,4 +616,6 @@ mod shared_geometry_tests;
 #[cfg(test)]
 mod snapshot_interval_tests;
 #[cfg(test)]
+mod spread_iterations_tests;
+#[cfg(test)]
 mod tests;

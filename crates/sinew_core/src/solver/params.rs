@@ -294,11 +294,13 @@ impl IterationParams {
 
     /// Whether `m` stages its snapshot after this iteration of the block
     /// ending at `block_end` (the [`IterationParams::block_end`] of the
-    /// iteration that started it): after the block's last iteration, or
-    /// after `m`'s own last where its count ends inside the block — what
-    /// it leaves then is what the next block's snapshot publishes.
+    /// iteration that started it): after `m`'s last iteration in the block
+    /// — the block's last, or `m`'s own last where its count ends inside
+    /// the block, or the last of a surface layer's spread iterations
+    /// there ([`IterationParams::runs`]) — what it leaves then is what the
+    /// next block's snapshot publishes.
     pub fn stages_for(&self, m: &Muscle, block_end: u32) -> bool {
-        self.index + 1 >= block_end || self.last_for(m)
+        self.own(m).next_after(self.index) >= block_end
     }
 
     /// The substep's last iteration: no iteration of the substep comes
@@ -307,15 +309,22 @@ impl IterationParams {
         self.index + 1 >= self.count
     }
 
-    /// Whether `m` runs this iteration (`index <` its own count).
+    /// Whether `m` runs this iteration. A muscle runs its own count's
+    /// first iterations (`index <` its count: the thesis' rule); a surface
+    /// layer (a skin) with fewer iterations than the substep spreads them
+    /// evenly over it (its `j`-th at `⌈j · count / own⌉`: 4 of 10 run at
+    /// 0, 3, 5 and 8): its later ones read the muscles under it further on
+    /// in their convergence, and in blocks of iterations
+    /// ([`crate::SolverSettings::snapshot_interval`]) its work is shared
+    /// between the blocks, beside the muscles'.
     pub fn runs(&self, m: &Muscle) -> bool {
-        self.index < self.substep.frame.iterations_of(m)
+        self.own(m).runs(self.index)
     }
 
     /// Whether `m`'s bone contacts run this iteration: in the substep's
     /// first, every [`SolverSettings::bone_contact_interval`]-th after it
     /// and `m`'s last; a surface layer's (a skin: few iterations, and
-    /// Sliding's walk only in the first) in every one.
+    /// Sliding's walk only in the first) in every one it runs.
     pub fn contacts_bones(&self, m: &Muscle) -> bool {
         let every = match m.params.is_surface_layer() {
             true => 1,
@@ -327,7 +336,18 @@ impl IterationParams {
     /// Whether this is `m`'s last iteration of the substep (its own count
     /// reached after it).
     pub fn last_for(&self, m: &Muscle) -> bool {
-        self.index + 1 == self.substep.frame.iterations_of(m)
+        let own = self.own(m);
+        own.runs(self.index) && own.next_after(self.index) == u32::MAX
+    }
+
+    /// Which iterations of this substep `m` runs.
+    fn own(&self, m: &Muscle) -> OwnIterations {
+        let own = self.substep.frame.iterations_of(m).min(self.count);
+        OwnIterations {
+            own,
+            count: self.count,
+            spread: own < self.count && m.params.is_surface_layer(),
+        }
     }
 
     /// How far `m`'s Volume is projected this iteration: one linearised step
@@ -352,6 +372,57 @@ impl IterationParams {
             walk: self.first_of_frame() || f.walk_every_iteration,
             first_of_substep: self.first_of_substep(),
             split: f.parallelism.muscles,
+        }
+    }
+}
+
+/// The iterations one muscle runs in a substep of `count`
+/// ([`IterationParams::runs`]): its first `own`, or with `spread` its
+/// `j`-th at `⌈j · count / own⌉` for `j < own`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct OwnIterations {
+    own: u32,
+    count: u32,
+    spread: bool,
+}
+
+impl OwnIterations {
+    /// The substep's iteration index of the muscle's own iteration `j`.
+    fn index_of(&self, j: u32) -> u32 {
+        match self.spread {
+            true => (u64::from(j) * u64::from(self.count)).div_ceil(u64::from(self.own)) as u32,
+            false => j,
+        }
+    }
+
+    /// How many of its own iterations the muscle has run before iteration
+    /// `index` of the substep.
+    fn before(&self, index: u32) -> u32 {
+        match (self.spread, index) {
+            (true, 0) => 0,
+            // `j` runs at `⌈j · count / own⌉ ≤ index − 1` for every
+            // `j ≤ (index − 1) · own / count`.
+            (true, _) => {
+                let last = u64::from(index - 1) * u64::from(self.own) / u64::from(self.count);
+                (last as u32 + 1).min(self.own)
+            }
+            (false, _) => index.min(self.own),
+        }
+    }
+
+    /// Whether the muscle runs iteration `index`.
+    fn runs(&self, index: u32) -> bool {
+        let j = self.before(index);
+        j < self.own && self.index_of(j) == index
+    }
+
+    /// The next iteration after `index` that the muscle runs; `u32::MAX`
+    /// when none does in the substep.
+    fn next_after(&self, index: u32) -> u32 {
+        let j = self.before(index.saturating_add(1));
+        match j < self.own {
+            true => self.index_of(j),
+            false => u32::MAX,
         }
     }
 }

@@ -88,10 +88,11 @@ pub fn publish_at(target: &mut TargetSurface, m: &Muscle, first_of_frame: bool) 
 /// iteration unless [`crate::SolverSettings::snapshot_interval`] says
 /// more) of `m`, back to back in one task: each its closest data, then
 /// its projection ([`sweep`] and [`finish`]), against the snapshots
-/// published before `p`; the block's last (or `m`'s own last) stages
-/// `m`'s snapshot for the next block. A muscle whose own iteration count
-/// is reached sits the rest out. `timer` splits the task's time between
-/// closest data and projection.
+/// published before `p`; `m`'s last iteration in the block stages its
+/// snapshot for the next block ([`IterationParams::stages_for`]). The
+/// iterations `m` does not run ([`IterationParams::runs`]: past its own
+/// count, or between a surface layer's spread ones) it sits out. `timer`
+/// splits the task's time between closest data and projection.
 pub fn iterate<T: TargetSet + Sync + ?Sized>(
     m: &mut Muscle,
     ws: &mut MuscleWorkspace,
@@ -102,7 +103,7 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
     let end = p.block_end();
     for p in p.block() {
         if !p.runs(m) {
-            break;
+            continue;
         }
         let start = timer.start();
         closest_data(m, ws, targets, p.closest());
