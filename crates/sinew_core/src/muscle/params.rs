@@ -72,7 +72,10 @@ pub struct MuscleParams {
     /// Fraction of fibre length lost at full activation (`c` in the rest-length
     /// formulas; the paper's value is 1). Default: `0.35`.
     pub max_contraction: f32,
-    /// Solver iterations for this muscle; `None` uses the global count. Default: `None`.
+    /// Solver iterations for this muscle; `None` uses the global count. A
+    /// muscle runs the substep's first ones, a surface layer its own spread
+    /// evenly over the substep's ([`crate::solver::IterationParams::runs`]).
+    /// Default: `None`.
     pub iterations: Option<u32>,
     /// Fibre rest-length formula. Default: [`FiberMode::RotationInvariant`].
     pub fiber_mode: FiberMode,

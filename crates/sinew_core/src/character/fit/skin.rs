@@ -40,7 +40,9 @@ pub struct SkinLayer {
     /// held by its binding and resting on the muscles, it converges in
     /// fewer. Over MakeHuman's walk 4 gave the figures of 10 (skin vertices
     /// inside 1.94 % against 1.90 %, 23 mm from the skinned position
-    /// against 25) in 60 % less of the skin's time. Default: 4.
+    /// against 25) in 60 % less of the skin's time. They are spread over
+    /// the substep's iterations ([`crate::solver::IterationParams::runs`]).
+    /// Default: 4.
     pub iterations: u32,
 }
 
