@@ -99,6 +99,7 @@ pub fn guard_all(
             muscles
                 .par_iter_mut()
                 .enumerate()
+                .with_max_len(1)
                 .for_each(|(i, pair)| check(i, pair));
         }),
         _ => muscles
@@ -110,7 +111,8 @@ pub fn guard_all(
 }
 
 /// [`pipeline::publish`] for every (snapshot, muscle) pair: the muscles
-/// that other muscles target, in parallel when there are several.
+/// that other muscles target, in parallel when there are several (split
+/// down to one each, as [`for_each_muscle`] splits).
 pub fn publish_all(
     pool: &WorkerPool,
     snapshots: &mut [(&mut TargetSurface, &Muscle)],
@@ -121,6 +123,7 @@ pub fn publish_all(
         Some(pool) if snapshots.len() > 1 => pool.install(|| {
             snapshots
                 .par_iter_mut()
+                .with_max_len(1)
                 .for_each(|(t, m)| pipeline::publish(t, m, it));
         }),
         _ => snapshots
