@@ -346,7 +346,9 @@ impl IterationParams {
         OwnIterations {
             own,
             count: self.count,
-            spread: own < self.count && m.params.is_surface_layer(),
+            // A count of 0 (refused by validation, but a host may set it
+            // between steps) runs nothing, spread or not.
+            spread: own > 0 && own < self.count && m.params.is_surface_layer(),
         }
     }
 

@@ -54,6 +54,9 @@ fn a_layer_spreads_its_iterations_and_a_muscle_runs_its_first() {
     );
     assert_eq!(iterations(&body(None, true), 6, all), Vec::from_iter(0..6));
     assert_eq!(iterations(&body(Some(1), true), 10, all), [0]);
+    // A count of 0, set past validation, runs nothing.
+    assert!(iterations(&body(Some(0), true), 10, all).is_empty());
+    assert!(iterations(&body(Some(0), false), 10, all).is_empty());
 }
 
 /// A layer's last iteration is its last spread one (Volume converges
