@@ -338,15 +338,12 @@ impl TargetSurface {
             // decides, remembered for the next call nearby.
             (_, Some((_, tree))) => match memo.side_at(bone, q) {
                 Some(side) => side,
-                None => match self.reached_side(query, q, (hit.distance, hit.triangle), memo, bone)
-                {
-                    Some(side) => side,
-                    None => {
+                None => match self.reached_side(query, q, hit, memo, bone) {
+                    Ok(side) => side,
+                    Err(searched) => {
                         let w = tree.winding_number(q);
                         let side = 0.5 - w;
-                        let distance = self
-                            .closest_within(query, Some(hit.triangle), f32::MAX)
-                            .map_or(0.0, |h| h.distance);
+                        let distance = searched.unwrap_or_else(|| self.exact_distance(query, hit));
                         memo.take(bone, q, distance.copysign(side));
                         side
                     }
@@ -367,33 +364,41 @@ impl SideMemo {
 }
 
 impl TargetSurface {
+    /// The exact distance from world `query` to the surface, `hit` being a
+    /// closest point found so far (a walk's): the search starts from its
+    /// triangle, bounded by its distance.
+    fn exact_distance(&self, query: Vec3, hit: ClosestHit) -> f32 {
+        self.closest_within(query, Some(hit.triangle), f32::MAX)
+            .map_or(0.0, |h| h.distance)
+    }
+
     /// The side of world `query` (local `q`, whose closest point found so
-    /// far is `distance` away, on `hit_triangle`) as a ball free of the
-    /// surface reaching the nearest of `memo`'s winding-number decisions
-    /// about `bone` tells it ([`SideMemo`]), remembered in `memo`; `None`
-    /// where no decision is near enough for one bounded search to tell.
+    /// far is `hit`) as a ball free of the surface reaching the nearest of
+    /// `memo`'s winding-number decisions about `bone` tells it
+    /// ([`SideMemo`]), remembered in `memo`. `Err` where no decision is
+    /// near enough for one bounded search to tell, with the exact distance
+    /// where that search ran (the winding-number decision that follows
+    /// needs it).
     fn reached_side(
         &self,
         query: Vec3,
         q: Vec3,
-        (distance, hit_triangle): (f32, u32),
+        hit: ClosestHit,
         memo: &mut SideMemo,
         bone: u32,
-    ) -> Option<f32> {
-        let (gap, side) = memo.nearest_decision(bone, q)?;
+    ) -> Result<f32, Option<f32>> {
+        let (gap, side) = memo.nearest_decision(bone, q).ok_or(None)?;
         // A ball a little larger than the gap overlaps the decision's.
-        if distance <= gap * (1.0 + 1e-3) + 1e-7 {
-            return None;
+        if hit.distance <= gap * (1.0 + 1e-3) + 1e-7 {
+            return Err(None);
         }
-        let exact = self
-            .closest_within(query, Some(hit_triangle), distance)
-            .map_or(distance, |h| h.distance);
+        let exact = self.exact_distance(query, hit);
         if exact <= gap * (1.0 + 1e-3) + 1e-7 {
-            return None;
+            return Err(Some(exact));
         }
         let radius = exact.copysign(side);
         memo.reach(bone, q, radius);
-        Some(radius)
+        Ok(radius)
     }
 }
 
