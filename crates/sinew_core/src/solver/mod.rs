@@ -27,6 +27,7 @@ mod guard;
 pub mod jacobi;
 mod link;
 mod momentum;
+mod muscle_ranges;
 mod parallel;
 mod params;
 pub mod passes;

@@ -3,6 +3,7 @@
 //! between sweeping by muscle and by colour.
 
 use super::coloring::ColorPlan;
+use super::muscle_ranges::for_each_in_ranges;
 use super::params::FrameParams;
 use super::settings::SweepSchedule;
 use super::workspace::MuscleWorkspace;
@@ -140,11 +141,15 @@ fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
 /// sizes the list is halved as it is (T7's walk took ×1.05 with its
 /// largest muscle started first).
 ///
-/// Either way the list is split down to single muscles
+/// The rest of the list is split down to single muscles
 /// (`with_max_len(1)`), so that a thread out of work takes muscles one by
 /// one from the other's rest: rayon otherwise stops splitting after a few
 /// halvings, and one frame of T7's run had each thread run exactly 72
-/// muscles, one idle for 0.64 ms of a 4.3 ms block.
+/// muscles, one idle for 0.64 ms of a 4.3 ms block. With no dominant muscle
+/// the list is shared out in ranges, one a thread, the muscles left in a
+/// range taken from its back by threads out of their own, and the last
+/// waited for spinning ([`super::muscle_ranges`]): rayon's join put the
+/// waiting thread to sleep, and its wake cost 0.1 ms a block.
 pub fn for_each_muscle(
     pool: Option<&rayon::ThreadPool>,
     muscles: &mut [MusclePair],
@@ -164,10 +169,9 @@ pub fn for_each_muscle(
                 .with_max_len(1);
             rayon::join(|| f(m, ws), || rest.for_each(|(m, ws)| f(m, ws)));
         }
-        None if muscles.len() > 1 => muscles
-            .par_iter_mut()
-            .with_max_len(1)
-            .for_each(|(m, ws)| f(m, ws)),
+        None if muscles.len() > 1 => {
+            for_each_in_ranges(muscles, pool.current_num_threads(), &f);
+        }
         None => muscles.iter_mut().for_each(|(m, ws)| f(m, ws)),
     });
 }
