@@ -40,13 +40,25 @@ pub(super) fn for_each_in_ranges(
     threads: usize,
     f: &(impl Fn(&mut Muscle, &mut MuscleWorkspace) + Sync),
 ) {
+    for_each_item_in_ranges(muscles, threads, &|_, (m, ws)| f(m, ws));
+}
+
+/// Runs `f(index, item)` on every item of `items` on the current rayon
+/// pool's `threads` threads, shared out in ranges as the muscles are
+/// (module docs): a pass over muscles or their snapshots.
+pub(super) fn for_each_item_in_ranges<T: Send>(
+    items: &mut [T],
+    threads: usize,
+    f: &(impl Fn(usize, &mut T) + Sync),
+) {
     use rayon::prelude::*;
     let members = threads.clamp(1, MAX_RANGES);
-    let size = muscles.len().div_ceil(members).max(1);
-    let mut ranges: [Mutex<std::slice::IterMut<MusclePair>>; MAX_RANGES] =
-        std::array::from_fn(|_| Mutex::new(Default::default()));
-    for (range, chunk) in ranges.iter_mut().zip(muscles.chunks_mut(size)) {
-        *range.get_mut().unwrap_or_else(PoisonError::into_inner) = chunk.iter_mut();
+    let size = items.len().div_ceil(members).max(1);
+    let mut ranges: [Mutex<Range<T>>; MAX_RANGES] =
+        std::array::from_fn(|_| Mutex::new((0, Default::default())));
+    for (k, (range, chunk)) in ranges.iter_mut().zip(items.chunks_mut(size)).enumerate() {
+        *range.get_mut().unwrap_or_else(PoisonError::into_inner) =
+            (k * size, chunk.iter_mut().enumerate());
     }
     let ranges = &ranges[..members];
     let finished = AtomicUsize::new(0);
@@ -59,13 +71,13 @@ pub(super) fn for_each_in_ranges(
                 // waits for it (the panic reaches the caller).
                 let _finish = Finish(&finished);
                 // Its own range from the front, then the others' from the back.
-                while let Some((m, ws)) = take(&ranges[member], false) {
-                    f(m, ws);
+                while let Some((i, item)) = take(&ranges[member], false) {
+                    f(i, item);
                 }
                 for k in 1..members {
                     let other = &ranges[(member + k) % members];
-                    while let Some((m, ws)) = take(other, true) {
-                        f(m, ws);
+                    while let Some((i, item)) = take(other, true) {
+                        f(i, item);
                     }
                 }
             }
@@ -77,14 +89,19 @@ pub(super) fn for_each_in_ranges(
         });
 }
 
-/// The next muscle of a range, from its front or its back.
-fn take<'a, T>(range: &Mutex<std::slice::IterMut<'a, T>>, back: bool) -> Option<&'a mut T> {
+/// A range: the index of its first item, and its items left, numbered from 0.
+type Range<'a, T> = (usize, std::iter::Enumerate<std::slice::IterMut<'a, T>>);
+
+/// The next item of a range and its index, from its front or its back.
+fn take<'a, T>(range: &Mutex<Range<'a, T>>, back: bool) -> Option<(usize, &'a mut T)> {
     let mut range = range.lock().unwrap_or_else(PoisonError::into_inner);
-    if back {
-        range.next_back()
+    let start = range.0;
+    let next = if back {
+        range.1.next_back()
     } else {
-        range.next()
-    }
+        range.1.next()
+    };
+    next.map(|(i, item)| (start + i, item))
 }
 
 /// Counts a member finished when dropped.

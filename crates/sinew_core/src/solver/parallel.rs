@@ -148,7 +148,7 @@ fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
 /// muscles, one idle for 0.64 ms of a 4.3 ms block. With no dominant muscle
 /// the list is shared out in ranges, one a thread, the muscles left in a
 /// range taken from its back by threads out of their own, and the last
-/// waited for spinning ([`super::muscle_ranges`]): rayon's join put the
+/// waited for spinning (`solver/muscle_ranges.rs`): rayon's join put the
 /// waiting thread to sleep, and its wake cost 0.1 ms a block.
 pub fn for_each_muscle(
     pool: Option<&rayon::ThreadPool>,

@@ -15,6 +15,7 @@
 
 use super::coloring::PlanKind;
 use super::guard::{Fault, guard};
+use super::muscle_ranges::for_each_item_in_ranges;
 use super::parallel::{MusclePair, WorkerPool, for_each_muscle, sweeps_by_color_pay};
 use super::params::{FrameParams, IterationParams, SubstepParams};
 use super::pipeline;
@@ -84,7 +85,6 @@ pub fn guard_all(
     length_unit: f32,
     faults: &mut Vec<Fault>,
 ) {
-    use rayon::prelude::*;
     let first_new = faults.len();
     let order = frame.order.as_slice();
     let found = Mutex::new(&mut *faults);
@@ -96,11 +96,7 @@ pub fn guard_all(
     };
     match pool.when(frame.parallelism.particles) {
         Some(pool) if muscles.len() > 1 => pool.install(|| {
-            muscles
-                .par_iter_mut()
-                .enumerate()
-                .with_max_len(1)
-                .for_each(|(i, pair)| check(i, pair));
+            for_each_item_in_ranges(muscles, pool.current_num_threads(), &check);
         }),
         _ => muscles
             .iter_mut()
@@ -111,20 +107,19 @@ pub fn guard_all(
 }
 
 /// [`pipeline::publish`] for every (snapshot, muscle) pair: the muscles
-/// that other muscles target, in parallel when there are several (split
-/// down to one each, as [`for_each_muscle`] splits).
+/// that other muscles target, in parallel when there are several (in
+/// ranges, as [`for_each_muscle`] shares out muscles of similar sizes).
 pub fn publish_all(
     pool: &WorkerPool,
     snapshots: &mut [(&mut TargetSurface, &Muscle)],
     it: &IterationParams,
 ) {
-    use rayon::prelude::*;
     match pool.when(it.substep.frame.parallelism.particles) {
         Some(pool) if snapshots.len() > 1 => pool.install(|| {
-            snapshots
-                .par_iter_mut()
-                .with_max_len(1)
-                .for_each(|(t, m)| pipeline::publish(t, m, it));
+            let publish = |_, (t, m): &mut (&mut TargetSurface, &Muscle)| {
+                pipeline::publish(t, m, it);
+            };
+            for_each_item_in_ranges(snapshots, pool.current_num_threads(), &publish);
         }),
         _ => snapshots
             .iter_mut()
