@@ -117,65 +117,27 @@ impl Drop for Finish<'_> {
 mod tests {
     use super::*;
 
-    /// Every muscle runs once, on 1 to 5 threads and with fewer muscles
-    /// than threads; and on two threads, while the first muscle takes 300
-    /// ms, the other thread runs every other one (its own range, then the
-    /// first range's from the back).
+    /// Every item runs once, with its index, on 1 to 5 threads, with
+    /// fewer items than threads and with none. (That a thread out of its
+    /// own range takes the others' leftovers is
+    /// `parallel::tests::a_slow_muscle_holds_no_other_behind_it`.)
     #[test]
-    fn every_muscle_runs_once_its_own_range_first() {
-        let oval = crate::scene::builtin("P1")
-            .unwrap()
-            .instantiate(std::path::Path::new("."))
-            .unwrap()
-            .muscles()[0]
-            .clone();
-        for (count, threads) in [(10, 1), (10, 2), (7, 3), (3, 5), (64, 4)] {
-            let mut muscles = vec![oval.clone(); count];
-            let mut workspaces = vec![MuscleWorkspace::default(); count];
-            let mut pairs: Vec<MusclePair> = muscles.iter_mut().zip(&mut workspaces).collect();
-            for (i, (m, _)) in pairs.iter_mut().enumerate() {
-                m.name = i.to_string();
-            }
+    fn every_item_runs_once_with_its_index() {
+        for (count, threads) in [(10, 1), (10, 2), (7, 3), (3, 5), (64, 4), (0, 2)] {
+            let mut items: Vec<usize> = (0..count).collect();
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap();
             let runs = Mutex::new(vec![0; count]);
             pool.install(|| {
-                for_each_in_ranges(&mut pairs, threads, &|m, _| {
-                    runs.lock().unwrap()[m.name.parse::<usize>().unwrap()] += 1;
+                for_each_item_in_ranges(&mut items, threads, &|i, item: &mut usize| {
+                    assert_eq!(i, *item);
+                    runs.lock().unwrap()[i] += 1;
                 });
             });
-            assert_eq!(
-                runs.into_inner().unwrap(),
-                vec![1; count],
-                "{count} on {threads}"
-            );
+            let runs = runs.into_inner().unwrap();
+            assert_eq!(runs, vec![1; count], "{count} on {threads}");
         }
-        let mut muscles = vec![oval; 40];
-        let mut workspaces = vec![MuscleWorkspace::default(); 40];
-        let mut pairs: Vec<MusclePair> = muscles.iter_mut().zip(&mut workspaces).collect();
-        for (i, (m, _)) in pairs.iter_mut().enumerate() {
-            m.name = i.to_string();
-        }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
-        let thread_of = Mutex::new(vec![usize::MAX; 40]);
-        pool.install(|| {
-            for_each_in_ranges(&mut pairs, 2, &|m, _| {
-                let i: usize = m.name.parse().unwrap();
-                let slow = if i == 0 { 300 } else { 1 };
-                std::thread::sleep(std::time::Duration::from_millis(slow));
-                thread_of.lock().unwrap()[i] = rayon::current_thread_index().unwrap();
-            });
-        });
-        let thread_of = thread_of.into_inner().unwrap();
-        let with_slow = thread_of.iter().filter(|&&t| t == thread_of[0]).count();
-        assert_eq!(
-            with_slow, 1,
-            "muscles waited for the slow one: {thread_of:?}"
-        );
     }
 }

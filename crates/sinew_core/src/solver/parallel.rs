@@ -274,8 +274,9 @@ mod tests {
 
     /// A slow muscle holds no other behind it: on two threads, while the
     /// first of 144 equal muscles takes 200 ms, the other thread runs
-    /// every other one (split in halves and quarters only, the slow one's
-    /// thread kept 35 of them).
+    /// every other one, its own range and then the slow one's from the
+    /// back (split in halves and quarters only, the slow one's thread kept
+    /// 35 of them; with no taking from another range, 71).
     #[test]
     fn a_slow_muscle_holds_no_other_behind_it() {
         let oval = builtin_muscles()[2].clone();
