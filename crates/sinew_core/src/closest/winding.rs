@@ -41,6 +41,9 @@ pub(super) fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     2.0 * numerator.atan2(denominator)
 }
 
+// A leaf's triangles fit one pack's four lanes.
+const _: () = assert!(LEAF_SIZE <= 4);
+
 /// The corners of up to four triangles (a leaf's), coordinate by
 /// coordinate: lane `k` of `a[0]` is the `x` of triangle `k`'s first
 /// corner. A leaf of fewer fills its other lanes with a point triangle,
@@ -55,7 +58,7 @@ struct CornerPack {
 impl CornerPack {
     /// The pack of `triangles` (at most four), given by their corners.
     fn new(triangles: &[[Vec3; 3]]) -> Self {
-        debug_assert!(!triangles.is_empty() && triangles.len() <= 4);
+        debug_assert!(!triangles.is_empty() && triangles.len() <= LEAF_SIZE);
         let point = [triangles[0][0]; 3];
         let lane = |k: usize| triangles.get(k).copied().unwrap_or(point);
         let axis = |corner: usize, axis: usize| {
