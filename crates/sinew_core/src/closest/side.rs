@@ -366,7 +366,7 @@ impl SideMemo {
 impl TargetSurface {
     /// The exact distance from world `query` to the surface, `hit` being a
     /// closest point found so far (a walk's): the search starts from its
-    /// triangle, bounded by its distance.
+    /// triangle, whose distance then bounds it.
     fn exact_distance(&self, query: Vec3, hit: ClosestHit) -> f32 {
         self.closest_within(query, Some(hit.triangle), f32::MAX)
             .map_or(0.0, |h| h.distance)

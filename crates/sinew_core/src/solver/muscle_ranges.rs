@@ -29,9 +29,9 @@ use crate::muscle::Muscle;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
-/// Most ranges: a pool of more threads runs its members on the first
-/// ranges only, the others taking from them.
-pub(super) const MAX_RANGES: usize = 64;
+/// Most ranges, and members: on a pool of more threads, at most this many
+/// of them share the items out.
+const MAX_RANGES: usize = 64;
 
 /// Runs `f` on every muscle of `muscles` on the current rayon pool's
 /// `threads` threads (module docs).
