@@ -1,7 +1,7 @@
 //! What ordering distance constraints in runs that share no particle gives
-//! a Gauss–Seidel pass (`DistanceBatch::solve_order`, ARCHITECTURE.md
+//! a Gauss–Seidel pass (`DistanceBatch::arrange_in_runs`, ARCHITECTURE.md
 //! "Distance constraints in runs"): two solvers of one scene, one in runs
-//! and one in mesh order, stepped side by side in one process, frame by
+//! and one in creation (mesh) order, stepped side by side in one process, frame by
 //! frame and alternating which goes first, so that a machine whose speed
 //! drifts slows both alike. Prints the median step and projection times of
 //! each and their ratio.
@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     for i in 0..in_mesh_order.muscles().len() {
         let k = &mut in_mesh_order.muscle_mut(i).constraints;
         for batch in [&mut k.fiber, &mut k.internal, &mut k.branch] {
-            batch.solve_order.clear();
+            batch.in_creation_order();
         }
     }
     for _ in 0..from {

@@ -81,6 +81,16 @@ impl ActivationRest {
             .push((edge - along * fiber).length_squared());
     }
 
+    /// Puts the data of constraint `order[k]` at index `k` (what
+    /// [`DistanceBatch::arrange_in_runs`] does to the whole batch).
+    fn permute(&mut self, order: &[u32]) {
+        permute(&mut self.edge, order);
+        permute(&mut self.fiber, order);
+        permute(&mut self.along, order);
+        permute(&mut self.across_squared, order);
+        permute(&mut self.contractile, order);
+    }
+
     /// Unit fibre of an edge from its two end fibres (SPEC §5.1 guards 1–2).
     pub fn edge_fiber(fa: Vec3, fb: Vec3) -> Vec3 {
         let fb = if fa.dot(fb) < 0.0 { -fb } else { fb };
@@ -167,10 +177,14 @@ pub struct DistanceBatch {
     pub activation: Option<ActivationRest>,
     /// Compliance α = 1/k. Units: m/N. `0` is rigid.
     pub compliance: f32,
-    /// The order a Gauss–Seidel pass projects the constraints in, set by
-    /// [`DistanceBatch::arrange_in_runs`] (runs that share no particle);
-    /// empty, or not as long as the batch: the batch's own order.
-    pub solve_order: Vec<u32>,
+    /// The constraints in the order they were created, as their indices
+    /// in the batch, once [`DistanceBatch::arrange_in_runs`] has put the
+    /// batch in another (runs that share no particle, for Gauss–Seidel);
+    /// empty while the batch is in creation order. The colourings read the
+    /// constraints in creation order
+    /// ([`ConstraintBatch::creation_order`]), so the runs change no other
+    /// method's colouring.
+    pub creation_order: Vec<u32>,
     /// The rest lengths the activation gives, kept apart while something
     /// else sets `rest` from them (a muscle whose rest lengths follow its
     /// held shape, [`crate::muscle::MuscleParams::rest_follows_hold`]);
@@ -182,7 +196,31 @@ pub struct DistanceBatch {
     pub shape_length: Vec<f32>,
 }
 
+/// Puts `values[order[k]]` at index `k`, where `values` holds one value
+/// per constraint (an optional array, left empty, is left alone).
+fn permute<T: Copy>(values: &mut Vec<T>, order: &[u32]) {
+    if values.len() == order.len() {
+        *values = order.iter().map(|&i| values[i as usize]).collect();
+    }
+}
+
 impl DistanceBatch {
+    /// Puts constraint `order[k]` (every per-constraint array's entry) at
+    /// index `k`; `order` is a permutation of the batch's indices. The
+    /// creation order is the caller's to update.
+    pub(super) fn permute(&mut self, order: &[u32]) {
+        debug_assert_eq!(order.len(), self.len());
+        permute(&mut self.a, order);
+        permute(&mut self.b, order);
+        permute(&mut self.rest, order);
+        permute(&mut self.lambda, order);
+        permute(&mut self.own_rest, order);
+        permute(&mut self.shape_length, order);
+        if let Some(act) = &mut self.activation {
+            act.permute(order);
+        }
+    }
+
     /// Number of constraints.
     pub fn len(&self) -> usize {
         self.a.len()
@@ -193,10 +231,12 @@ impl DistanceBatch {
         self.a.is_empty()
     }
 
-    /// Adds a constraint with the given fixed rest length (dropping the
-    /// [`DistanceBatch::solve_order`]).
+    /// Adds a constraint with the given fixed rest length, after the
+    /// others (last in creation order too).
     pub fn push(&mut self, a: ParticleId, b: ParticleId, rest: f32) {
-        self.solve_order.clear();
+        if !self.creation_order.is_empty() {
+            self.creation_order.push(self.a.len() as u32);
+        }
         self.a.push(a);
         self.b.push(b);
         self.rest.push(rest);
@@ -260,9 +300,13 @@ impl ConstraintBatch for DistanceBatch {
         [self.a[i], self.b[i], self.b[i]]
     }
 
-    /// In [`DistanceBatch::solve_order`].
+    /// In the batch's order ([`DistanceBatch::arrange_in_runs`]).
     fn solve(&mut self, p: &mut [Vec3], w: &[f32], inv_dt2: f32) {
         self.solve_in_order(p, w, inv_dt2);
+    }
+
+    fn creation_order(&self) -> &[u32] {
+        &self.creation_order
     }
 
     #[inline(always)]

@@ -193,6 +193,14 @@ pub trait ConstraintBatch {
     /// The multipliers' storage, to move out for a parallel sweep and back.
     fn lambda_storage(&mut self) -> &mut Vec<f32>;
 
+    /// The constraints in the order they were created, as their indices in
+    /// the batch, where the batch keeps them in another (a
+    /// [`DistanceBatch`] in Gauss–Seidel runs); empty where the batch's
+    /// order is the creation order. Default: empty.
+    fn creation_order(&self) -> &[u32] {
+        &[]
+    }
+
     /// Projection of constraint `i` with accumulated multiplier `lambda`,
     /// given its particles ([`Gathered`]), not yet written (`None`: nothing
     /// to do). The kernel every method shares.

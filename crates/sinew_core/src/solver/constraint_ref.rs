@@ -78,12 +78,20 @@ pub(super) fn is_off(m: &Muscle, c: ConstraintRef) -> bool {
         .is_some_and(|b| b.is_off(c.index as usize))
 }
 
-/// Every constraint of `m` except Volume, type by type in `order`.
+/// Every constraint of `m` except Volume, type by type in `order`, each
+/// type's in creation order ([`ConstraintBatch::creation_order`]: a
+/// distance batch's Gauss–Seidel runs change no colouring).
 pub fn constraints_in_order(m: &Muscle, order: &[ConstraintKind]) -> Vec<ConstraintRef> {
     let mut out = Vec::new();
     for &kind in order {
-        let len = m.constraints.batch(kind).map_or(0, |b| b.count());
-        out.extend((0..len as u32).map(|index| ConstraintRef { kind, index }));
+        let Some(batch) = m.constraints.batch(kind) else {
+            continue;
+        };
+        let reference = |index| ConstraintRef { kind, index };
+        match batch.creation_order() {
+            [] => out.extend((0..batch.count() as u32).map(reference)),
+            created => out.extend(created.iter().copied().map(reference)),
+        }
     }
     out
 }

@@ -117,3 +117,42 @@ fn group_count_is_bounded_below_by_the_busiest_particle() {
         assert!(colors.len() <= max_conflicts + 1);
     }
 }
+
+/// A muscle's distance batches are in Gauss–Seidel runs, not in the order
+/// their constraints were created; every colouring reads them in creation
+/// order, so it is the one the batches in creation order give: the same
+/// particles, colour by colour and constraint by constraint.
+#[test]
+fn colourings_do_not_depend_on_the_runs() {
+    let order = ConstraintKind::CANONICAL_ORDER;
+    for m in muscles("P3") {
+        let mut created = m.clone();
+        let k = &mut created.constraints;
+        for batch in [&mut k.fiber, &mut k.internal, &mut k.branch] {
+            batch.in_creation_order();
+        }
+        assert_ne!(m.constraints.fiber.a, created.constraints.fiber.a);
+        let tied = |m: &Muscle, colors: Vec<Vec<ConstraintRef>>| -> Vec<Vec<_>> {
+            let pair = |c: ConstraintRef| (c.kind, particles_of(m, c));
+            colors
+                .into_iter()
+                .map(|g| g.into_iter().map(pair).collect())
+                .collect()
+        };
+        let greedy = |m: &Muscle| tied(m, ColorGroups::greedy(m, &order).groups);
+        assert_eq!(greedy(&m), greedy(&created));
+        let plan = |m: &Muscle, kind| {
+            let plan = ColorPlan::build(m, &order, kind);
+            let units = plan.units.windows(2).map(|u| u[0] as usize..u[1] as usize);
+            let units: Vec<Vec<ConstraintRef>> = units.map(|u| plan.refs[u].to_vec()).collect();
+            (tied(m, units), plan.colors.clone())
+        };
+        for kind in [
+            PlanKind::PerConstraint,
+            PlanKind::Clustered,
+            PlanKind::Hybrid { min_group: 8 },
+        ] {
+            assert_eq!(plan(&m, kind), plan(&created, kind), "{kind:?}");
+        }
+    }
+}
