@@ -244,7 +244,7 @@ fn a_vertex_that_keeps_its_target_still_finds_a_bone_it_entered() {
                     continue;
                 }
                 let (mut m, mut ws) = (m.clone(), ws.clone());
-                m.p[v] = hit.point - 2e-3 * hit.normal;
+                m.p[v] = (hit.point - 2e-3 * hit.normal).into();
                 let inside = surface.closest(m.p[v], None).unwrap().signed_distance < -1e-3;
                 if !inside || !surface.contains(m.p[v]) {
                     continue;

@@ -44,7 +44,7 @@
 use super::faces::{self, FaceKind};
 use super::winding::WindingTree;
 use super::{ClosestHit, TargetSurface, TriangleBvh};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// Face kinds and pseudo-normals of a rigid target, in its local frame
 /// (empty for a deforming target).
@@ -325,8 +325,8 @@ impl TargetSurface {
             hit.triangle,
             self.geometry.triangles[t],
             self.geometry.across_edge[t],
-            hit.barycentric,
-            q - self.to_local(hit.point),
+            hit.barycentric.into(),
+            q - self.to_local(hit.point.into()),
         );
         let side = match (exact, &p.winding) {
             // Outside, or a clean surface's exact answer.
@@ -414,7 +414,7 @@ fn with_side(mut hit: ClosestHit, query: Vec3, side: f32) -> ClosestHit {
     if agrees && hit.signed_distance.abs() >= 0.5 * hit.distance {
         return hit;
     }
-    let Some(direction) = (query - hit.point).try_normalize() else {
+    let Some(direction) = (Vec3A::from(query) - hit.point).try_normalize() else {
         return hit;
     };
     let sign = if side != 0.0 {

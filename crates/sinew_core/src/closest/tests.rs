@@ -38,7 +38,9 @@ fn walk_reaches_the_closest_point_of_a_convex_target() {
         // closest to a point a little way around the surface.
         let dir = jitter(i + 1).normalize();
         let on_surface = t.closest(dir * 0.06, None).unwrap();
-        let q = on_surface.point + on_surface.normal * (0.002 + 0.018 * (i % 10) as f32 / 9.0);
+        let q = Vec3::from(
+            on_surface.point + on_surface.normal * (0.002 + 0.018 * (i % 10) as f32 / 9.0),
+        );
         let start = t
             .closest(q + 0.01 * jitter(i + 1000), None)
             .unwrap()

@@ -123,9 +123,9 @@ impl TargetSurface {
             )
         };
         ClosestHit {
-            point,
-            normal,
-            barycentric: bary,
+            point: point.into(),
+            normal: normal.into(),
+            barycentric: bary.into(),
             triangle,
             distance: d2.sqrt(),
             signed_distance: normal.dot(query - point),

@@ -364,7 +364,8 @@ pub fn push_out_of_bones(
                     if b.contains(q)
                         && let Some(hit) = b.closest_within(q, None, f32::INFINITY)
                     {
-                        q = hit.point + (q - hit.point).normalize_or_zero() * -margin;
+                        let point = Vec3::from(hit.point);
+                        q = point + (q - point).normalize_or_zero() * -margin;
                     }
                 }
                 q
@@ -517,9 +518,9 @@ mod tests {
         assert_eq!(m.mesh.self_crossings(&m.mesh.positions), 0);
         assert!(m.mesh.positions.iter().all(|&p| !bone.contains(p)));
         let anywhere = |c: Vec3, _: Vec3, r: f32, _: Vec3| {
-            let hit = bone.closest(c, None).unwrap();
-            let out = (c - hit.point).normalize() * if bone.contains(c) { -1.0 } else { 1.0 };
-            (hit.point + out * (r + 0.001), r)
+            let point = Vec3::from(bone.closest(c, None).unwrap().point);
+            let out = (c - point).normalize() * if bone.contains(c) { -1.0 } else { 1.0 };
+            (point + out * (r + 0.001), r)
         };
         let m = sweep_path_clear_of("m", &path, None, &options, &anywhere).unwrap();
         assert!(m.mesh.self_crossings(&m.mesh.positions) > 0);

@@ -110,7 +110,7 @@ impl SkinBindingDesc {
                             .iter()
                             .filter(|&&(b, _)| b == bone)
                             .filter_map(|(_, t)| t.closest(x, None))
-                            .map(|hit| hit.point.distance(x))
+                            .map(|hit| Vec3::from(hit.point).distance(x))
                             .fold(f32::INFINITY, f32::min);
                         let d = to_held.min(to_surface);
                         (bone, 1.0 / (d * d).max(f32::MIN_POSITIVE.sqrt()))

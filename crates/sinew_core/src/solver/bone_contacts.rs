@@ -256,7 +256,7 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                     if let Some(hit) = hit {
                         cell.warm = hit.triangle;
                         if hit.signed_distance < 0.0 {
-                            x -= hit.normal * hit.signed_distance;
+                            x -= Vec3::from(hit.normal) * hit.signed_distance;
                             cell.clearance = Vec4::ZERO;
                         } else {
                             cell.clearance = local.extend(hit.distance);

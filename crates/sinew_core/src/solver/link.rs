@@ -169,10 +169,10 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         s.connected.push(contact.is_some());
         s.compliance.push(0.0);
         s.contact.push(SlidingContact {
-            point: hit.point,
-            normal: hit.normal,
-            barycentric: hit.barycentric,
-            target_w: target.point_inverse_mass(hit.triangle, hit.barycentric),
+            point: hit.point.into(),
+            normal: hit.normal.into(),
+            barycentric: hit.barycentric.into(),
+            target_w: target.point_inverse_mass(hit.triangle, hit.barycentric.into()),
             gap: f32::INFINITY,
             triangle: hit.triangle,
             target: TargetSlot::new(slot),
@@ -185,15 +185,19 @@ pub fn link<T: TargetSet + ?Sized>(m: &mut Muscle, ws: &mut MuscleWorkspace, tar
         let anchor = SurfaceAnchor {
             target: TargetSlot::new(slot),
             triangle: hit.triangle,
-            barycentric: hit.barycentric,
+            barycentric: hit.barycentric.into(),
             local: Vec3::ZERO,
             connected: tie.is_some(),
         };
-        let target_w = target.point_inverse_mass(hit.triangle, hit.barycentric);
-        c.soft
-            .push(ParticleId::from_index(v), hit.point, hit.distance, 0.0);
+        let target_w = target.point_inverse_mass(hit.triangle, hit.barycentric.into());
+        c.soft.push(
+            ParticleId::from_index(v),
+            hit.point.into(),
+            hit.distance,
+            0.0,
+        );
         c.soft_anchor.push(anchor);
-        let frame = target.frame_at(hit.triangle, hit.barycentric);
+        let frame = target.frame_at(hit.triangle, hit.barycentric.into());
         let local = Vec3::from(frame.basis.transpose() * glam::Vec3A::from(q - frame.origin));
         c.hard.push(ParticleId::from_index(v), q, 0.0, 0.0);
         c.hard_anchor.push(SurfaceAnchor { local, ..anchor });

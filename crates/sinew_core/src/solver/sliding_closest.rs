@@ -247,10 +247,10 @@ impl<T: TargetSet + ?Sized> SlidingInput<'_, T> {
                 Some((_, hit, slot, gap, rest_outside)) => {
                     let surface = self.targets.target(self.target_ids[slot]);
                     contact[i] = SlidingContact {
-                        point: hit.point,
-                        normal: hit.normal,
-                        barycentric: hit.barycentric,
-                        target_w: surface.point_inverse_mass(hit.triangle, hit.barycentric),
+                        point: hit.point.into(),
+                        normal: hit.normal.into(),
+                        barycentric: hit.barycentric.into(),
+                        target_w: surface.point_inverse_mass(hit.triangle, hit.barycentric.into()),
                         gap,
                         triangle: hit.triangle,
                         target: TargetSlot::new(slot),

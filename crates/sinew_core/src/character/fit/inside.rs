@@ -153,7 +153,7 @@ impl SkinVolume {
     fn pull_of(&self, p: Vec3, margin: f32) -> Option<Vec3> {
         let hit = self.closest(p)?;
         let depth = hit.signed_distance + margin;
-        (depth > 0.0).then(|| -depth * hit.normal)
+        (depth > 0.0).then(|| -depth * Vec3::from(hit.normal))
     }
 
     /// How far out (m) and which way a vertex inside this surface, or
@@ -162,7 +162,7 @@ impl SkinVolume {
     fn push_of(&self, p: Vec3, clearance: f32) -> Option<Vec3> {
         let hit = self.closest(p)?;
         let short = clearance - hit.signed_distance;
-        (short > 0.0).then(|| short * hit.normal)
+        (short > 0.0).then(|| short * Vec3::from(hit.normal))
     }
 }
 
@@ -206,7 +206,7 @@ fn below_skin_vertices(
         if short <= 0.0 || sd < -DEEPEST || (sd < 0.0 && !surface.contains(skin)) {
             continue;
         }
-        let step = -short * hit.normal;
+        let step = -short * Vec3::from(hit.normal);
         for &corner in &surface.triangles()[hit.triangle as usize] {
             let slot = &mut moves[corner as usize];
             if slot.is_none_or(|m| m.length_squared() < step.length_squared()) {
