@@ -113,6 +113,46 @@ impl ActivationRest {
         }
     }
 
+    /// [`ActivationRest::rest_length`] of every constraint, into `rest`.
+    /// The rotation-invariant lengths are written out in one loop over the
+    /// arrays, which the compiler packs four or eight to a square root
+    /// (the same operations: the same bits); T7 sets 55 000 a frame.
+    fn rest_lengths(&self, mode: FiberMode, s: &ActivationScale, rest: &mut [f32]) {
+        let n = rest.len();
+        let parts = (self.along.get(..n), self.across_squared.get(..n));
+        // No contractile values, or one per constraint.
+        let contractile = match self.contractile.len() {
+            0 => Some(None),
+            m if m >= n => Some(Some(&self.contractile[..n])),
+            _ => None,
+        };
+        let (FiberMode::RotationInvariant, (Some(along), Some(across_squared)), Some(contractile)) =
+            (mode, parts, contractile)
+        else {
+            for (i, r) in rest.iter_mut().enumerate() {
+                *r = self.rest_length(i, mode, s);
+            }
+            return;
+        };
+        let length = |shortening: f32, bulge: f32, along: f32, across_squared: f32| {
+            ((bulge * bulge) * across_squared + (shortening * along).powi(2)).sqrt()
+        };
+        match contractile {
+            Some(k) => {
+                for i in 0..n {
+                    let shortening = 1.0 + (s.shortening - 1.0) * k[i];
+                    let bulge = 1.0 + (s.bulge - 1.0) * k[i];
+                    rest[i] = length(shortening, bulge, along[i], across_squared[i]);
+                }
+            }
+            None => {
+                for i in 0..n {
+                    rest[i] = length(s.shortening, s.bulge, along[i], across_squared[i]);
+                }
+            }
+        }
+    }
+
     fn scaled_length(&self, i: usize, mode: FiberMode, s: &ActivationScale) -> f32 {
         match mode {
             FiberMode::PaperExact => {
@@ -251,9 +291,7 @@ impl DistanceBatch {
         if let Some(act) = &mut self.activation
             && act.applied != Some((mode, *scale))
         {
-            for (i, r) in self.rest.iter_mut().enumerate() {
-                *r = act.rest_length(i, mode, scale);
-            }
+            act.rest_lengths(mode, scale, &mut self.rest);
             act.applied = Some((mode, *scale));
             if !self.own_rest.is_empty() {
                 self.own_rest.clone_from(&self.rest);
@@ -393,6 +431,43 @@ mod tests {
                     formed.to_bits(),
                     "{i}, a {a}"
                 );
+            }
+        }
+    }
+
+    /// A batch's rest lengths, set in one pass ([`DistanceBatch::update_rest`]),
+    /// are each constraint's [`ActivationRest::rest_length`] to the bit: in
+    /// both fibre modes, with and without contractile values, and a batch of
+    /// a length the packed loop does not divide.
+    #[test]
+    fn the_batch_pass_gives_each_constraints_rest_length() {
+        for (n, contractile) in [(67, true), (67, false), (3, true)] {
+            let mut batch = DistanceBatch::default();
+            let mut act = ActivationRest::default();
+            for i in 0..n {
+                let k = i as f32;
+                let edge = Vec3::new((k * 1.3).sin(), (k * 0.7).cos(), (k * 2.1).sin()) * 0.01;
+                let fiber = Vec3::new((k * 0.9).cos(), (k * 1.9).sin(), 0.4).normalize();
+                act.push(edge, fiber);
+                let id = ParticleId::from_index;
+                batch.push(id(i), id(i + 1), 0.0);
+            }
+            if contractile {
+                act.contractile = (0..n).map(|i| (i % 5) as f32 / 4.0).collect();
+            }
+            batch.activation = Some(act.clone());
+            for mode in [FiberMode::RotationInvariant, FiberMode::PaperExact] {
+                for (a, ratio) in [(0.0, None), (0.6, Some(1.2)), (1.0, Some(1.5))] {
+                    let s = ActivationScale::new(a, 0.1, 0.7, ratio);
+                    batch.update_rest(mode, &s);
+                    for i in 0..n {
+                        assert_eq!(
+                            batch.rest[i].to_bits(),
+                            act.rest_length(i, mode, &s).to_bits(),
+                            "{n} constraints, contractile {contractile}, {mode:?}, a {a}: {i}"
+                        );
+                    }
+                }
             }
         }
     }
