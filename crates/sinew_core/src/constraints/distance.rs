@@ -220,7 +220,8 @@ pub struct DistanceBatch {
     /// The constraints in the order they were created, as their indices
     /// in the batch, once [`DistanceBatch::arrange_in_runs`] has put the
     /// batch in another (runs that share no particle, for Gauss–Seidel);
-    /// empty while the batch is in creation order. The colourings read the
+    /// empty (or, set by hand, not as long as the batch) while the batch is
+    /// taken to be in creation order. The colourings read the
     /// constraints in creation order
     /// ([`ConstraintBatch::creation_order`]), so the runs change no other
     /// method's colouring.
@@ -344,7 +345,10 @@ impl ConstraintBatch for DistanceBatch {
     }
 
     fn creation_order(&self) -> &[u32] {
-        &self.creation_order
+        match self.creation_order.len() == self.len() {
+            true => &self.creation_order,
+            false => &[],
+        }
     }
 
     #[inline(always)]

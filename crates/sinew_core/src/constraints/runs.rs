@@ -77,8 +77,10 @@ impl DistanceBatch {
             position[i as usize] = k as u32;
         }
         self.creation_order = match self.creation_order.as_slice() {
-            [] => position,
-            created => created.iter().map(|&i| position[i as usize]).collect(),
+            created if created.len() == position.len() => {
+                created.iter().map(|&i| position[i as usize]).collect()
+            }
+            _ => position,
         };
         self.permute(&order);
         std::iter::once(0)
@@ -94,7 +96,7 @@ impl DistanceBatch {
     /// in that order.
     pub fn in_creation_order(&mut self) {
         let created = std::mem::take(&mut self.creation_order);
-        if !created.is_empty() {
+        if created.len() == self.len() {
             self.permute(&created);
         }
     }
