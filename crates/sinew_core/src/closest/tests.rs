@@ -137,3 +137,38 @@ fn the_largest_move_is_the_one_lane_maximum() {
         }
     }
 }
+
+/// A posed target's hit normal (normalised once, after the transform) is
+/// the unit interpolated normal carried by the pose: for a rotation with a
+/// uniform scale, within a few ulps of normalising before the transform
+/// too, and of unit length.
+#[test]
+fn a_posed_hit_has_the_unit_interpolated_normal() {
+    let mut t = ellipsoid_target();
+    let rotation = glam::Quat::from_axis_angle(Vec3::new(0.3, -0.8, 0.5).normalize(), 1.1);
+    let pose = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(1.7),
+        rotation,
+        Vec3::new(0.2, -0.1, 0.4),
+    );
+    t.set_transform(pose);
+    for i in 0..200 {
+        let q = pose.transform_point3(jitter(i + 7) * 0.05);
+        let hit = t.closest_within(q, None, f32::MAX).unwrap();
+        let [a, b, c] = t.triangles()[hit.triangle as usize];
+        let n = t.normals();
+        let bary = hit.barycentric;
+        let local = n[a as usize] * bary.x + n[b as usize] * bary.y + n[c as usize] * bary.z;
+        let twice = pose.transform_vector3(local.normalize()).normalize();
+        let normal = Vec3::from(hit.normal);
+        assert!(
+            (normal.length() - 1.0).abs() < 1e-6,
+            "query {i}: |n| {}",
+            normal.length()
+        );
+        assert!(
+            normal.distance(twice) < 1e-6,
+            "query {i}: {normal} vs {twice}"
+        );
+    }
+}
