@@ -119,9 +119,10 @@ impl TargetSurface {
             (sum.try_normalize().unwrap_or(Vec3::Y), c)
         } else {
             let length_squared = sum.length_squared();
-            let local = match length_squared > 0.0 && length_squared.is_finite() {
-                true => sum,
-                false => Vec3::Y,
+            let local = if length_squared > 0.0 && length_squared.is_finite() {
+                sum
+            } else {
+                Vec3::Y
             };
             (
                 self.transform
