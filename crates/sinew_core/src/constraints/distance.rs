@@ -119,21 +119,16 @@ impl ActivationRest {
     /// (the same operations: the same bits); T7 sets 55 000 a frame.
     fn rest_lengths(&self, mode: FiberMode, s: &ActivationScale, rest: &mut [f32]) {
         let n = rest.len();
-        let parts = (self.along.get(..n), self.across_squared.get(..n));
-        // No contractile values, or one per constraint.
-        let contractile = match self.contractile.len() {
-            0 => Some(None),
-            m if m >= n => Some(Some(&self.contractile[..n])),
-            _ => None,
-        };
-        let (FiberMode::RotationInvariant, (Some(along), Some(across_squared)), Some(contractile)) =
-            (mode, parts, contractile)
-        else {
+        // Contractile values for some constraints only: each its own reading.
+        let partial = !self.contractile.is_empty() && self.contractile.len() < n;
+        if mode != FiberMode::RotationInvariant || partial {
             for (i, r) in rest.iter_mut().enumerate() {
                 *r = self.rest_length(i, mode, s);
             }
             return;
-        };
+        }
+        let (along, across_squared) = (&self.along[..n], &self.across_squared[..n]);
+        let contractile = (!self.contractile.is_empty()).then(|| &self.contractile[..n]);
         let length = |shortening: f32, bulge: f32, along: f32, across_squared: f32| {
             ((bulge * bulge) * across_squared + (shortening * along).powi(2)).sqrt()
         };
@@ -345,9 +340,10 @@ impl ConstraintBatch for DistanceBatch {
     }
 
     fn creation_order(&self) -> &[u32] {
-        match self.creation_order.len() == self.len() {
-            true => &self.creation_order,
-            false => &[],
+        if self.creation_order.len() == self.len() {
+            &self.creation_order
+        } else {
+            &[]
         }
     }
 

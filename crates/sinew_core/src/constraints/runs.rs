@@ -21,8 +21,8 @@
 //! array and scattering them back cost more than the packed arithmetic
 //! saved (T7's step 5–8 % slower than the same order one at a time).
 
-use super::DistanceBatch;
 use super::distance::project_pair;
+use super::{ConstraintBatch, DistanceBatch};
 use glam::Vec3;
 use std::collections::VecDeque;
 
@@ -76,11 +76,9 @@ impl DistanceBatch {
         for (k, &i) in order.iter().enumerate() {
             position[i as usize] = k as u32;
         }
-        self.creation_order = match self.creation_order.as_slice() {
-            created if created.len() == position.len() => {
-                created.iter().map(|&i| position[i as usize]).collect()
-            }
-            _ => position,
+        self.creation_order = match ConstraintBatch::creation_order(self) {
+            [] => position,
+            created => created.iter().map(|&i| position[i as usize]).collect(),
         };
         self.permute(&order);
         std::iter::once(0)
@@ -166,7 +164,7 @@ mod tests {
     /// order.
     fn created(batch: &DistanceBatch) -> Vec<(ParticleId, ParticleId, u32)> {
         let at = |i: usize| (batch.a[i], batch.b[i], batch.rest[i].to_bits());
-        match batch.creation_order.as_slice() {
+        match ConstraintBatch::creation_order(batch) {
             [] => (0..batch.len()).map(at).collect(),
             order => order.iter().map(|&i| at(i as usize)).collect(),
         }
