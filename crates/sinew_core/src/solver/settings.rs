@@ -220,11 +220,13 @@ pub struct SolverSettings {
     pub schedule: SweepSchedule,
     /// Scenes with fewer constraints than this run their passes over
     /// muscles on the calling thread, and scenes with fewer particles their
-    /// per-particle passes (integration, goals, publishing), whatever
+    /// per-particle passes (integration, goals, publishing; a particle whose
+    /// goal follows a held line counts
+    /// [`crate::solver::Parallelism::HELD_LINE_WEIGHT`] times), whatever
     /// `threads` says: a fork and join (≈ 10 µs on the 2-core development
     /// machine) costs more than the split saves. The same bits either way.
     /// Default: `8192` (P2 ran 3× and P3 1.2× slower on two threads than on
-    /// one without it; P4 and T7 split).
+    /// one without it; P4 and T7 split, P4's per-particle passes as well).
     pub parallel_threshold: usize,
     /// The run-time guard's speed limit: after each frame a muscle with a
     /// particle faster than this (or a NaN or infinite one) is put back to
