@@ -245,7 +245,6 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                         NO_TRIANGLE => target.closest_within(x, None, f32::INFINITY),
                         t => target.walk(x, t),
                     };
-                    margin = 0.0;
                     let hit = hit.map(|hit| {
                         if self.layer || hit.distance > SIDE_READ_BEYOND * self.length_unit {
                             target.settle_side(x, hit, &mut run.side_memo[i], slot as u32)
@@ -253,14 +252,21 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                             hit
                         }
                     });
-                    if let Some(hit) = hit {
-                        cell.warm = hit.triangle;
-                        if hit.signed_distance < 0.0 {
-                            x -= Vec3::from(hit.normal) * hit.signed_distance;
-                            cell.clearance = Vec4::ZERO;
-                        } else {
-                            cell.clearance = local.extend(hit.distance);
-                        }
+                    let Some(hit) = hit else {
+                        margin = 0.0;
+                        continue;
+                    };
+                    cell.warm = hit.triangle;
+                    if hit.signed_distance < 0.0 {
+                        x -= Vec3::from(hit.normal) * hit.signed_distance;
+                        cell.clearance = Vec4::ZERO;
+                        margin = 0.0;
+                    } else {
+                        // The cell's clearance, which its own test trusts:
+                        // a vertex that moves less than it skips the cell
+                        // there, so it may skip the whole check.
+                        cell.clearance = local.extend(hit.distance);
+                        margin = margin.min(hit.distance);
                     }
                 }
             }
