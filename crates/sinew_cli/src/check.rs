@@ -5,11 +5,15 @@
 
 use crate::bench::Overrides;
 use crate::commands::{load_scene, write_stdout};
-use sinew_core::analysis::{ResidualsAtWorst, RunMetrics, Thresholds};
+use sinew_core::Solver;
+use sinew_core::analysis::{ResidualsAtWorst, RunMetrics, Thresholds, Verdict};
+use sinew_core::scene::Scene;
 use std::error::Error;
 use std::fmt::Write as _;
 use std::process::ExitCode;
 use std::time::Instant;
+
+mod scatter;
 
 type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
@@ -119,19 +123,92 @@ pub struct CheckArgs {
     /// per type).
     #[arg(long)]
     pub residuals: bool,
+    /// Also run the scene N more times with its time step nudged by one,
+    /// two, … units in the last place (up, then down: +1, −1, +2, …),
+    /// which changes every bit of a run and nothing of its physics, and
+    /// print each judged figure's range over all the runs: the scatter
+    /// that a change which alters the bits is judged against (slower:
+    /// N + 1 runs).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub perturb: u32,
     #[command(flatten)]
     pub limits: Limits,
     #[command(flatten)]
     pub overrides: Overrides,
 }
 
-/// Runs the scene and prints the report; the exit code is non-zero when a
-/// judged figure is out of range.
+/// Runs the scene and prints the report (with `--perturb`, the scatter of
+/// its figures over the nudged runs after it); the exit code is non-zero
+/// when a judged figure is out of range in any run.
 pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     let a = args.limits.bulge_activation;
     if !(0.0..=1.0).contains(&a) {
         return Err(format!("--bulge-activation {a}: an activation is in [0, 1]").into());
     }
+    let first = simulate(args, 0)?;
+    let mut out = String::new();
+    let verdicts = first.report(&mut out, args)?;
+    let mut failed = failed_figures(&verdicts, 0, &[]);
+    if args.perturb > 0 {
+        let mut runs = vec![(0, verdicts)];
+        for ulps in scatter::nudges(args.perturb) {
+            eprintln!("check: the time step {ulps:+} ulp");
+            let run = simulate(args, ulps)?;
+            let verdicts = run.verdicts(args);
+            failed.extend(failed_figures(&verdicts, ulps, &runs[0].1));
+            runs.push((ulps, verdicts));
+        }
+        scatter::table(&mut out, first.dt, &runs)?;
+    }
+    if failed.is_empty() {
+        writeln!(out, "check passed")?;
+    } else {
+        writeln!(out, "check FAILED: {}", failed.join(", "))?;
+    }
+    write_stdout(&out)?;
+    Ok(if failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+/// The figures of `verdicts` that failed, named with the nudge of their
+/// run where it was nudged, but for those that failed in `as_is` too (the
+/// run as it is names them once).
+fn failed_figures(verdicts: &[Verdict], ulps: i32, as_is: &[Verdict]) -> Vec<String> {
+    let failed_as_is = |figure| {
+        as_is
+            .iter()
+            .any(|v| v.figure == figure && v.pass == Some(false))
+    };
+    let failed = verdicts
+        .iter()
+        .filter(|v| v.pass == Some(false) && !failed_as_is(v.figure));
+    match ulps {
+        0 => failed.map(|v| v.figure.to_string()).collect(),
+        _ => failed
+            .map(|v| format!("{} (time step {ulps:+} ulp)", v.figure))
+            .collect(),
+    }
+}
+
+/// One simulated run: the solver at its end and what was measured.
+struct CheckRun {
+    scene: Scene,
+    solver: Solver,
+    frames: u32,
+    metrics: RunMetrics,
+    /// Per sensor: its name and the `[min, max]` of its value and velocity.
+    sensor_ranges: Vec<(String, [f32; 2], [f32; 2])>,
+    seconds: f64,
+    /// The time step the scene gives (before any nudge). Units: s.
+    dt: f32,
+}
+
+/// Loads and runs the scene as `args` say, its time step nudged by `ulps`
+/// units in the last place (0: as it is).
+fn simulate(args: &CheckArgs, ulps: i32) -> Result<CheckRun> {
     let (mut scene, base) = load_scene(&args.scene)?;
     if args.still {
         scene.hold_first_pose();
@@ -139,6 +216,8 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     if args.relaxed {
         scene.relax_muscles();
     }
+    let dt = scene.settings.dt;
+    scene.settings.dt = scatter::nudged(dt, ulps);
     let mut solver = scene.instantiate(&base)?;
     args.overrides.apply(&mut solver)?;
     let frames = args.frames.unwrap_or(scene.frames.max(1));
@@ -164,81 +243,88 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
             }
         }
     }
-    let seconds = start.elapsed().as_secs_f64();
-    let mut out = String::new();
-    let dt = solver.settings.step_time();
-    let motion_end = scene.motion_end();
-    writeln!(
-        out,
-        "scene {}: {frames} frames ({:.2} s simulated, last motion key at {motion_end:.2} s) in {seconds:.1} s",
-        scene.name,
-        frames as f32 * dt
-    )?;
-    writeln!(
-        out,
-        "jiggle                 {:.3} m/s² RMS surface acceleration in the bone frame (whole run)",
-        metrics.jiggle_rms()
-    )?;
-    muscle_tables(&mut out, &metrics, &solver)?;
-    if let Some(residuals) = &metrics.residuals {
-        residual_table(&mut out, residuals, &solver)?;
-    }
-    let muscles = solver.muscles();
-    for (b, frame) in &metrics.skin_bulges {
-        writeln!(
-            out,
-            "bulge of {} over {:<12} a {:.2}  max {:.2} mm (vertex {})  median {:.2} mm over {} vertices  (frame {frame})",
-            muscles[b.skin].name,
-            muscles[b.muscle].name,
-            b.activation,
-            b.max * 1e3,
-            b.vertex,
-            b.median * 1e3,
-            b.vertices
-        )?;
-    }
-    for (name, value, velocity) in &sensor_ranges {
-        writeln!(
-            out,
-            "sensor {name:<15} value [{:.3}, {:.3}]  velocity [{:.2}, {:.2}]",
-            value[0], value[1], velocity[0], velocity[1]
-        )?;
-    }
-    let limits = Thresholds::from(args.limits);
-    let verdicts = metrics.verdicts(&solver, &limits, motion_end);
-    writeln!(out, "{:<19}{:<6}{:<22}value", "figure", "", "range")?;
-    for v in &verdicts {
-        let mark = match v.pass {
-            Some(true) => "ok",
-            Some(false) => "FAIL",
-            None => "-",
-        };
-        writeln!(out, "{:<19}{:<6}{:<22}{}", v.figure, mark, v.limit, v.value)?;
-    }
-    let failed: Vec<&str> = verdicts
-        .iter()
-        .filter(|v| v.pass == Some(false))
-        .map(|v| v.figure)
-        .collect();
-    if !metrics.at_rest(&solver, motion_end, limits.settle) {
-        writeln!(
-            out,
-            "rest figures not judged: the run ends before {:.2} s (the last motion key + {} s settle)",
-            motion_end + limits.settle,
-            limits.settle
-        )?;
-    }
-    if failed.is_empty() {
-        writeln!(out, "check passed")?;
-    } else {
-        writeln!(out, "check FAILED: {}", failed.join(", "))?;
-    }
-    write_stdout(&out)?;
-    Ok(if failed.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
+    Ok(CheckRun {
+        scene,
+        solver,
+        frames,
+        metrics,
+        sensor_ranges,
+        seconds: start.elapsed().as_secs_f64(),
+        dt,
     })
+}
+
+impl CheckRun {
+    /// Every figure judged against `args`' limits.
+    fn verdicts(&self, args: &CheckArgs) -> Vec<Verdict> {
+        let limits = Thresholds::from(args.limits);
+        (self.metrics).verdicts(&self.solver, &limits, self.scene.motion_end())
+    }
+
+    /// Writes the run's report (every table, then the verdicts) into
+    /// `out` and returns the verdicts.
+    fn report(&self, out: &mut String, args: &CheckArgs) -> Result<Vec<Verdict>> {
+        let (metrics, solver) = (&self.metrics, &self.solver);
+        let dt = solver.settings.step_time();
+        let motion_end = self.scene.motion_end();
+        writeln!(
+            out,
+            "scene {}: {} frames ({:.2} s simulated, last motion key at {motion_end:.2} s) in {:.1} s",
+            self.scene.name,
+            self.frames,
+            self.frames as f32 * dt,
+            self.seconds
+        )?;
+        writeln!(
+            out,
+            "jiggle                 {:.3} m/s² RMS surface acceleration in the bone frame (whole run)",
+            metrics.jiggle_rms()
+        )?;
+        muscle_tables(out, metrics, solver)?;
+        if let Some(residuals) = &metrics.residuals {
+            residual_table(out, residuals, solver)?;
+        }
+        let muscles = solver.muscles();
+        for (b, frame) in &metrics.skin_bulges {
+            writeln!(
+                out,
+                "bulge of {} over {:<12} a {:.2}  max {:.2} mm (vertex {})  median {:.2} mm over {} vertices  (frame {frame})",
+                muscles[b.skin].name,
+                muscles[b.muscle].name,
+                b.activation,
+                b.max * 1e3,
+                b.vertex,
+                b.median * 1e3,
+                b.vertices
+            )?;
+        }
+        for (name, value, velocity) in &self.sensor_ranges {
+            writeln!(
+                out,
+                "sensor {name:<15} value [{:.3}, {:.3}]  velocity [{:.2}, {:.2}]",
+                value[0], value[1], velocity[0], velocity[1]
+            )?;
+        }
+        let verdicts = self.verdicts(args);
+        writeln!(out, "{:<19}{:<6}{:<22}value", "figure", "", "range")?;
+        for v in &verdicts {
+            let mark = match v.pass {
+                Some(true) => "ok",
+                Some(false) => "FAIL",
+                None => "-",
+            };
+            writeln!(out, "{:<19}{:<6}{:<22}{}", v.figure, mark, v.limit, v.value)?;
+        }
+        let settle = args.limits.settle;
+        if !metrics.at_rest(solver, motion_end, settle) {
+            writeln!(
+                out,
+                "rest figures not judged: the run ends before {:.2} s (the last motion key + {settle} s settle)",
+                motion_end + settle,
+            )?;
+        }
+        Ok(verdicts)
+    }
 }
 
 /// Per muscle: volume, activation and bulge, attachment and penetration;

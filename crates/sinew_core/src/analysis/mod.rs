@@ -23,7 +23,7 @@ pub use skin::{
     SkinBindDistance, SkinBulge, skin_bind_distances, skin_bulges, skin_inside_vertices,
     skinned_surface,
 };
-pub use verdict::{Thresholds, Verdict};
+pub use verdict::{Measured, Thresholds, Verdict};
 
 use crate::closest::{TargetSource, TargetSurface};
 use crate::muscle::Muscle;

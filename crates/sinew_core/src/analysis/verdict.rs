@@ -81,10 +81,33 @@ pub struct Verdict {
     pub figure: &'static str,
     /// The worst value and where it was seen.
     pub value: String,
+    /// The worst values of `value`'s text as numbers: what a comparison of
+    /// runs reads (`sinew check --perturb` prints their ranges). Empty
+    /// where the run gave none (no muscle reached the bulge activation).
+    pub measured: Vec<Measured>,
     /// The range it must be in.
     pub limit: String,
     /// `None`: not judged (the scene was still moving); else whether it passed.
     pub pass: Option<bool>,
+}
+
+/// One number of a [`Verdict`], in the units its text gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measured {
+    /// What it is, where the figure has more than one (`"min"`, `"max"`);
+    /// empty for a figure's one value.
+    pub name: &'static str,
+    /// The value.
+    pub value: f64,
+    /// Its unit (`"mm"`, `"%"`), empty for a ratio or a count.
+    pub unit: &'static str,
+}
+
+impl Measured {
+    /// `value` named `name` (may be empty), in `unit` (may be empty).
+    pub fn new(name: &'static str, value: f64, unit: &'static str) -> Self {
+        Self { name, value, unit }
+    }
 }
 
 impl RunMetrics {
@@ -109,10 +132,11 @@ impl RunMetrics {
                 })
         };
         let mut out = Vec::new();
-        let mut push = |figure, value: String, limit: String, pass| {
+        let mut push = |figure, value: String, measured, limit: String, pass| {
             out.push(Verdict {
                 figure,
                 value,
+                measured,
                 limit,
                 pass,
             });
@@ -127,6 +151,14 @@ impl RunMetrics {
                     first.as_deref().unwrap_or("?")
                 ),
             },
+            vec![
+                Measured::new(
+                    "frames not finite",
+                    f64::from(u8::from(self.first_non_finite.is_some())),
+                    "",
+                ),
+                Measured::new("faults", self.faults.0 as f64, ""),
+            ],
             "every frame, no fault".into(),
             Some(self.first_non_finite.is_none() && self.faults.0 == 0),
         );
@@ -134,6 +166,7 @@ impl RunMetrics {
         push(
             "attachment error",
             format!("{:.3} mm ({})", e.max(0.0) * 1e3, name(i)),
+            vec![Measured::new("", e.max(0.0) * 1e3, "mm")],
             format!("≤ {} mm", limits.attachment * 1e3),
             Some(e <= f64::from(limits.attachment)),
         );
@@ -144,6 +177,11 @@ impl RunMetrics {
                 self.penetration_max * 100.0,
                 self.penetration_frame
             ),
+            vec![Measured::new(
+                "",
+                f64::from(self.penetration_max) * 100.0,
+                "%",
+            )],
             format!("≤ {} %", limits.penetration * 100.0),
             Some(self.penetration_max <= limits.penetration),
         );
@@ -155,6 +193,7 @@ impl RunMetrics {
                     share * 100.0,
                     self.skin_inside_frame
                 ),
+                vec![Measured::new("", f64::from(share) * 100.0, "%")],
                 format!("≤ {} %", limits.skin_inside * 100.0),
                 Some(share <= limits.skin_inside),
             );
@@ -179,6 +218,9 @@ impl RunMetrics {
                         self.bulge_activation
                     ),
                 },
+                peak.map(|(b, _)| Measured::new("", f64::from(b.max) * 1e3, "mm"))
+                    .into_iter()
+                    .collect(),
                 format!("≥ {:.1} mm", limits.skin_bulge * 1e3),
                 peak.map(|(b, _)| b.max >= limits.skin_bulge),
             );
@@ -212,6 +254,10 @@ impl RunMetrics {
                 hi,
                 name(hi_i)
             ),
+            vec![
+                Measured::new("min", -lo, ""),
+                Measured::new("max", hi, "of the gain"),
+            ],
             format!("[{}, gain × {}]", limits.volume_min, limits.volume_max),
             Some(muscles.is_empty() || (-lo >= limits.volume_min && hi <= limits.volume_max)),
         );
@@ -238,6 +284,10 @@ impl RunMetrics {
                         "; its attachments force ×{f:.2}"
                     ))
             ),
+            vec![
+                Measured::new("min", -min, ""),
+                Measured::new("max", max, ""),
+            ],
             format!("[{}, {}]", limits.strain[0], limits.strain[1]),
             Some(
                 muscles.is_empty()
@@ -253,6 +303,7 @@ impl RunMetrics {
                 name(f_i),
                 self.flipped_max.get(f_i).map_or(0, |f| f.1)
             ),
+            vec![Measured::new("", flipped.max(0.0), "")],
             format!("≤ {}", limits.flipped),
             Some(flipped <= limits.flipped as f64),
         );
@@ -269,6 +320,11 @@ impl RunMetrics {
                 name(v_i),
                 motion.get(v_i).map_or(0.0, |m| m.rms_velocity() * 1e3)
             ),
+            vec![Measured::new(
+                "",
+                f64::from(total.rms_velocity()) * 1e3,
+                "mm/s",
+            )],
             format!("< {} mm/s", limits.rest_velocity * 1e3),
             judged(total.rms_velocity() < limits.rest_velocity),
         );
@@ -281,6 +337,11 @@ impl RunMetrics {
                 name(a_i),
                 motion.get(a_i).map_or(0.0, |m| m.rms_acceleration())
             ),
+            vec![Measured::new(
+                "",
+                f64::from(total.rms_acceleration()),
+                "m/s²",
+            )],
             format!("< {} m/s²", limits.rest_jiggle),
             judged(total.rms_acceleration() < limits.rest_jiggle),
         );
@@ -295,6 +356,10 @@ impl RunMetrics {
                 total.strain_max,
                 name(hi_i)
             ),
+            vec![
+                Measured::new("min", f64::from(total.strain_min), ""),
+                Measured::new("max", f64::from(total.strain_max), ""),
+            ],
             format!("[{}, {}]", limits.rest_strain[0], limits.rest_strain[1]),
             judged(
                 muscles.is_empty()
@@ -312,6 +377,7 @@ impl RunMetrics {
                 name(d_i),
                 deviation.get(d_i).map_or(0, |d| d.worst_vertex)
             ),
+            vec![Measured::new("", d.max(0.0) * 1e3, "mm")],
             format!("≤ {} mm", limits.rest_deviation * 1e3),
             judged(d <= f64::from(limits.rest_deviation)),
         );
@@ -330,6 +396,10 @@ impl RunMetrics {
                     d.active_bound,
                     d.active_max * 1e3
                 ),
+                vec![
+                    Measured::new("", f64::from(d.max) * 1e3, "mm"),
+                    Measured::new("", d.over as f64, "vertices farther where no muscle acts"),
+                ],
                 format!("≤ {} mm", limits.skin_bind * 1e3),
                 judged(d.max <= limits.skin_bind),
             );
