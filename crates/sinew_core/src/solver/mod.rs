@@ -613,6 +613,8 @@ impl Solver {
 #[cfg(test)]
 mod determinism_tests;
 #[cfg(test)]
+mod parallelism_tests;
+#[cfg(test)]
 mod shared_geometry_tests;
 #[cfg(test)]
 mod snapshot_interval_tests;
