@@ -126,7 +126,8 @@ pub struct CheckArgs {
     pub residuals: bool,
     /// Also run the scene N more times with its time step nudged by one,
     /// two, … units in the last place (up, then down: +1, −1, +2, …),
-    /// which changes every bit of a run and nothing of its physics, and
+    /// which changes the bits of every freely moving vertex and nothing of
+    /// the physics, and
     /// print each judged figure's range over all the runs: the scatter
     /// that a change which alters the bits is judged against (slower:
     /// N + 1 runs).
