@@ -1,9 +1,9 @@
 //! What ordering distance constraints in runs that share no particle gives
 //! a Gauss–Seidel pass (`DistanceBatch::arrange_in_runs`, ARCHITECTURE.md
 //! "Distance constraints in runs"): two solvers of one scene, one in runs
-//! and one in creation (mesh) order, stepped side by side in one process, frame by
-//! frame and alternating which goes first, so that a machine whose speed
-//! drifts slows both alike. Prints the median step and projection times of
+//! and one in creation (mesh) order, stepped side by side in one process,
+//! frame by frame and alternating which goes first, so that a machine
+//! whose speed drifts slows both alike. Prints the median step and projection times of
 //! each and their ratio.
 //!
 //! ```sh

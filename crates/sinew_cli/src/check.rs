@@ -10,6 +10,7 @@ use sinew_core::analysis::{ResidualsAtWorst, RunMetrics, Thresholds, Verdict};
 use sinew_core::scene::Scene;
 use std::error::Error;
 use std::fmt::Write as _;
+use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -147,7 +148,8 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
     if !(0.0..=1.0).contains(&a) {
         return Err(format!("--bulge-activation {a}: an activation is in [0, 1]").into());
     }
-    let first = simulate(args, 0)?;
+    let (scene, base) = load_scene(&args.scene)?;
+    let first = simulate(args, &scene, &base, 0)?;
     let mut out = String::new();
     let verdicts = first.report(&mut out, args)?;
     let mut failed = failed_figures(&verdicts, 0, &[]);
@@ -155,12 +157,12 @@ pub fn run(args: &CheckArgs) -> Result<ExitCode> {
         let mut runs = vec![(0, verdicts)];
         for ulps in scatter::nudges(args.perturb) {
             eprintln!("check: the time step {ulps:+} ulp");
-            let run = simulate(args, ulps)?;
+            let run = simulate(args, &scene, &base, ulps)?;
             let verdicts = run.verdicts(args);
             failed.extend(failed_figures(&verdicts, ulps, &runs[0].1));
             runs.push((ulps, verdicts));
         }
-        scatter::table(&mut out, first.dt, &runs)?;
+        scatter::table(&mut out, scene.settings.dt, &runs)?;
     }
     if failed.is_empty() {
         writeln!(out, "check passed")?;
@@ -204,23 +206,20 @@ struct CheckRun {
     /// Per sensor: its name and the `[min, max]` of its value and velocity.
     sensor_ranges: Vec<(String, [f32; 2], [f32; 2])>,
     seconds: f64,
-    /// The time step the scene gives (before any nudge). Units: s.
-    dt: f32,
 }
 
-/// Loads and runs the scene as `args` say, its time step nudged by `ulps`
-/// units in the last place (0: as it is).
-fn simulate(args: &CheckArgs, ulps: i32) -> Result<CheckRun> {
-    let (mut scene, base) = load_scene(&args.scene)?;
+/// Runs `scene` (loaded, its files relative to `base`) as `args` say, its
+/// time step nudged by `ulps` units in the last place (0: as it is).
+fn simulate(args: &CheckArgs, scene: &Scene, base: &Path, ulps: i32) -> Result<CheckRun> {
+    let mut scene = scene.clone();
     if args.still {
         scene.hold_first_pose();
     }
     if args.relaxed {
         scene.relax_muscles();
     }
-    let dt = scene.settings.dt;
-    scene.settings.dt = scatter::nudged(dt, ulps);
-    let mut solver = scene.instantiate(&base)?;
+    scene.settings.dt = scatter::nudged(scene.settings.dt, ulps);
+    let mut solver = scene.instantiate(base)?;
     args.overrides.apply(&mut solver)?;
     let frames = args.frames.unwrap_or(scene.frames.max(1));
     let mut metrics = RunMetrics::new(&solver, args.depth_mm * 1e-3);
@@ -252,7 +251,6 @@ fn simulate(args: &CheckArgs, ulps: i32) -> Result<CheckRun> {
         metrics,
         sensor_ranges,
         seconds: start.elapsed().as_secs_f64(),
-        dt,
     })
 }
 
