@@ -59,9 +59,10 @@ pub enum SceneSaveError {
     Scene(#[from] sinew_core::SceneError),
 }
 
-/// Scenes just saved over their own asset file, by asset: when the file
-/// watcher reloads that file and it holds exactly what was saved, the
-/// running scene already has it and is not spawned again.
+/// Scenes saved over their own asset file, by asset: when the file watcher
+/// reloads that file (once or several times) and it holds exactly what was
+/// saved, the running scene already has it and is not spawned again. An
+/// entry goes at the first reload that holds something else.
 #[derive(Resource, Default, Debug)]
 pub(crate) struct SavedScenes(
     pub(crate) bevy::platform::collections::HashMap<AssetId<SinewScene>, Scene>,
@@ -193,11 +194,16 @@ pub(crate) fn respawn_changed_scenes(
         let AssetEvent::Modified { id } = change else {
             continue;
         };
-        if let Some(saved) = saved_scenes.0.remove(id)
-            && scenes.get(*id).is_some_and(|s| s.scene == saved)
-        {
-            log.push("saved scene reloaded from disk: already running".into());
-            continue;
+        // One save can reach the watcher as more than one change (the
+        // rename over the file and its metadata), so the saved scene is
+        // kept for as long as reloads bring exactly it back, and forgotten
+        // at the first that brings something else.
+        if let Some(saved) = saved_scenes.0.get(id) {
+            if scenes.get(*id).is_some_and(|s| s.scene == *saved) {
+                log.push("saved scene reloaded from disk: already running".into());
+                continue;
+            }
+            saved_scenes.0.remove(id);
         }
         for (source, mut spawned) in &mut roots {
             if let SinewSceneRoot::Asset(handle) = source

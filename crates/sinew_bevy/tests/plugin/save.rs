@@ -167,6 +167,72 @@ fn a_changed_scene_asset_is_spawned_again() {
     );
 }
 
+/// The muscles spawned under `root` so far (none before its scene loads).
+fn spawned_muscles(app: &App, root: Entity) -> Vec<Entity> {
+    app.world()
+        .get::<SpawnedScene>(root)
+        .map(|s| s.muscles.clone())
+        .unwrap_or_default()
+}
+
+#[test]
+fn an_own_save_reloaded_more_than_once_is_not_spawned_again() {
+    let dir =
+        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("sinew_own_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("scene.ron");
+    builtin("P1").unwrap().save(&file).unwrap();
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..default()
+        },
+        bevy::transform::TransformPlugin,
+        SinewPlugin::default().every_update(),
+    ));
+    let handle: Handle<SinewScene> = app.world().resource::<AssetServer>().load("scene.ron");
+    let root = app
+        .world_mut()
+        .spawn(SinewSceneRoot::Asset(handle.clone()))
+        .id();
+    let spawned = |app: &App| spawned_muscles(app, root);
+    assert!(
+        update_for(&mut app, 5.0, |app| spawned(app).len() == 1),
+        "P1 loaded"
+    );
+    let before = spawned(&app);
+    app.world_mut()
+        .write_message(SaveScene { root, path: None });
+    app.update();
+
+    // The watcher may bring one save back as several reloads of the same
+    // text (here: the file read back and put in the asset, three times).
+    let reload = |app: &mut App, scene: Scene| {
+        let scene = SinewScene::build(scene, &dir).unwrap();
+        app.world_mut()
+            .resource_mut::<Assets<SinewScene>>()
+            .insert(handle.id(), scene)
+            .unwrap();
+        app.update();
+        app.update();
+    };
+    for _ in 0..3 {
+        reload(&mut app, Scene::load(&file).unwrap());
+        assert_eq!(
+            spawned(&app),
+            before,
+            "its own save does not restart the scene"
+        );
+    }
+
+    // Then the file brings something else: spawned again.
+    reload(&mut app, builtin("P3").unwrap());
+    assert_eq!(spawned(&app).len(), 2, "P3's two muscles");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Updates (5 ms apart) until `done` or `seconds` pass; whether it got there.
 fn update_for(app: &mut App, seconds: f32, done: impl Fn(&App) -> bool) -> bool {
     let start = std::time::Instant::now();
@@ -201,12 +267,7 @@ fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
     ));
     let handle = app.world().resource::<AssetServer>().load("scene.ron");
     let root = app.world_mut().spawn(SinewSceneRoot::Asset(handle)).id();
-    let spawned = |app: &App| {
-        app.world()
-            .get::<SpawnedScene>(root)
-            .map(|s| s.muscles.clone())
-            .unwrap_or_default()
-    };
+    let spawned = |app: &App| spawned_muscles(app, root);
     assert!(
         update_for(&mut app, 5.0, |app| spawned(app).len() == 1),
         "P1 loaded"
