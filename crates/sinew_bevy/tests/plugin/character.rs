@@ -5,6 +5,8 @@
 
 #![cfg(feature = "gltf")]
 
+use crate::common;
+
 use bevy::animation::AnimationPlugin;
 use bevy::gltf::GltfPlugin;
 use bevy::mesh::MeshPlugin;
@@ -65,13 +67,9 @@ impl LoadedGltf {
 /// `extra`; the file stays loaded as [`LoadedGltf`]. Returns the scene root.
 pub(crate) fn spawn_gltf(app: &mut App, file: &str, extra: impl Bundle) -> Entity {
     let handle: Handle<Gltf> = app.world().resource::<AssetServer>().load(file.to_string());
-    for _ in 0..600 {
-        app.update();
-        if app.world().resource::<Assets<Gltf>>().contains(&handle) {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    common::update_for(app, common::WAIT_SECONDS, |app| {
+        app.world().resource::<Assets<Gltf>>().contains(&handle)
+    });
     let gltfs = app.world().resource::<Assets<Gltf>>();
     let scene = gltfs.get(&handle).expect("the glTF loads").scenes[0].clone();
     app.insert_resource(LoadedGltf(handle));
@@ -113,19 +111,13 @@ fn gltf_joints_played_by_bevy_animation_drive_a_muscle() {
     let at = Transform::from_xyz(0.4, 1.5, -0.2);
     let character = spawn_gltf(&mut app, "arm.glb", at);
     app.world_mut().entity_mut(character).observe(on_ready);
-    let mut built_at = None;
-    for frame in 0..600 {
-        app.update();
+    let built = common::update_for(&mut app, common::WAIT_SECONDS, |app| {
         let mut muscles = app
             .world_mut()
             .query_filtered::<Entity, With<MuscleState>>();
-        if muscles.iter(app.world()).next().is_some() {
-            built_at = Some(frame);
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    assert!(built_at.is_some(), "the muscle was never built");
+        muscles.iter(app.world()).next().is_some()
+    });
+    assert!(built, "the muscle was never built");
     let joints = *app.world().resource::<Joints>();
     let muscle = app
         .world_mut()
@@ -325,15 +317,9 @@ fn a_scene_on_a_character_follows_its_animated_joints() {
         .world_mut()
         .spawn((SinewSceneRoot::Built(built), OnCharacter(character)))
         .id();
-    let mut placed = false;
-    for _ in 0..600 {
-        app.update();
-        if app.world().get::<PlacedOnCharacter>(root).is_some() {
-            placed = true;
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    let placed = common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+        app.world().get::<PlacedOnCharacter>(root).is_some()
+    });
     assert!(placed, "the scene was never placed on the character");
     assert!(
         app.world().get::<SkeletonDriver>(root).is_none(),

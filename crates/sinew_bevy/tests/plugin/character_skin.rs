@@ -6,6 +6,7 @@
 #![cfg(feature = "gltf")]
 
 use crate::character::{FLEX, LoadedGltf, gltf_app, spawn_gltf};
+use crate::common;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldInstanceReady;
 use sinew_bevy::prelude::*;
@@ -69,13 +70,9 @@ fn a_simulated_skin_replaces_the_characters_and_the_view_shows_each_layer() {
         .world_mut()
         .spawn((SinewSceneRoot::Built(built), OnCharacter(character)))
         .id();
-    for _ in 0..600 {
-        app.update();
-        if app.world().get::<PlacedOnCharacter>(root).is_some() {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+        app.world().get::<PlacedOnCharacter>(root).is_some()
+    });
     assert!(app.world().get::<PlacedOnCharacter>(root).is_some());
     app.update();
     app.update();
@@ -135,13 +132,9 @@ fn a_simulated_skin_replaces_the_characters_and_the_view_shows_each_layer() {
                 .attach(MuscleAttachment::region(bones[1], insertion, 0.012)),
         )
         .id();
-    for _ in 0..300 {
-        app.update();
-        if app.world().get::<MuscleMesh>(muscle).is_some() {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+        app.world().get::<MuscleMesh>(muscle).is_some()
+    });
     assert!(
         app.world().get::<MuscleMesh>(muscle).is_some(),
         "the muscle never got its mesh: {:?}",
@@ -188,7 +181,8 @@ fn a_clip_played_from_rest_blends_in_from_the_bind_pose() {
         );
     }
     // Both load and start on the same update.
-    for _ in 0..600 {
+    let start = std::time::Instant::now();
+    while start.elapsed().as_secs_f32() < common::WAIT_SECONDS {
         for app in &mut apps {
             app.update();
         }

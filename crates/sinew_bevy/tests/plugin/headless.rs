@@ -374,13 +374,7 @@ fn a_failed_build_is_reported_on_the_entity() {
             MuscleSource::File("no/such/file.obj".into(), Default::default()),
         ))
         .id();
-    for _ in 0..200 {
-        app.update();
-        if app.world().get::<BuildFailed>(e).is_some() {
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    common::update_until(&mut app, |app| app.world().get::<BuildFailed>(e).is_some());
     let failed = app.world().get::<BuildFailed>(e).expect("reported");
     assert!(
         matches!(*failed.0, MuscleBuildError::Mesh(_)),

@@ -199,7 +199,9 @@ fn an_own_save_reloaded_more_than_once_is_not_spawned_again() {
         .id();
     let spawned = |app: &App| spawned_muscles(app, root);
     assert!(
-        update_for(&mut app, 5.0, |app| spawned(app).len() == 1),
+        common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+            spawned(app).len() == 1
+        }),
         "P1 loaded"
     );
     let before = spawned(&app);
@@ -233,19 +235,6 @@ fn an_own_save_reloaded_more_than_once_is_not_spawned_again() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Updates (5 ms apart) until `done` or `seconds` pass; whether it got there.
-fn update_for(app: &mut App, seconds: f32, done: impl Fn(&App) -> bool) -> bool {
-    let start = std::time::Instant::now();
-    while start.elapsed().as_secs_f32() < seconds {
-        app.update();
-        if done(app) {
-            return true;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    false
-}
-
 #[cfg(feature = "hot_reload")]
 #[test]
 fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
@@ -269,7 +258,9 @@ fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
     let root = app.world_mut().spawn(SinewSceneRoot::Asset(handle)).id();
     let spawned = |app: &App| spawned_muscles(app, root);
     assert!(
-        update_for(&mut app, 5.0, |app| spawned(app).len() == 1),
+        common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+            spawned(app).len() == 1
+        }),
         "P1 loaded"
     );
     let before = spawned(&app);
@@ -277,14 +268,16 @@ fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
     // Saved over its own file: the watcher reloads it, the scene keeps running.
     app.world_mut()
         .write_message(SaveScene { root, path: None });
-    let respawned = update_for(&mut app, 2.0, |app| spawned(app) != before);
+    let respawned = common::update_for(&mut app, 2.0, |app| spawned(app) != before);
     assert!(!respawned, "its own save does not restart the scene");
     assert_eq!(spawned(&app), before);
 
     // Edited on disk (here: replaced by P3): spawned again, two muscles.
     builtin("P3").unwrap().save(&file).unwrap();
     assert!(
-        update_for(&mut app, 5.0, |app| spawned(app).len() == 2),
+        common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+            spawned(app).len() == 2
+        }),
         "the edited file was not spawned again"
     );
 }

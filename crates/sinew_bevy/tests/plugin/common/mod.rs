@@ -50,16 +50,36 @@ pub fn oval_on(bone: Entity) -> MuscleBuilder {
         .attach(MuscleAttachment::vertex(bone, 0))
 }
 
-/// Updates until `done` holds (builds run on the async pool), at most 2 s.
-pub fn update_until(app: &mut App, done: impl Fn(&App) -> bool) {
-    for _ in 0..400 {
+/// How long a test waits for work on Bevy's task pools (muscle builds,
+/// asset loads, reloads) before it fails. Units: s. Far longer than that
+/// work takes (milliseconds to a second here), so that a machine loaded by
+/// other test binaries does not fail what a quiet one passes; a wait ends
+/// as soon as the work is done.
+pub const WAIT_SECONDS: f32 = 60.0;
+
+/// Updates `app` (2 ms of wall time apart) until `done` holds or `seconds`
+/// of wall time pass; whether `done` held.
+pub fn update_for(app: &mut App, seconds: f32, mut done: impl FnMut(&mut App) -> bool) -> bool {
+    let start = std::time::Instant::now();
+    loop {
         app.update();
         if done(app) {
-            return;
+            return true;
         }
-        std::thread::sleep(std::time::Duration::from_millis(5));
+        if start.elapsed().as_secs_f32() >= seconds {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
     }
-    panic!("timed out");
+}
+
+/// Updates until `done` holds (builds run on the async pool); fails the
+/// test after [`WAIT_SECONDS`].
+pub fn update_until(app: &mut App, done: impl Fn(&App) -> bool) {
+    assert!(
+        update_for(app, WAIT_SECONDS, |app| done(app)),
+        "timed out after {WAIT_SECONDS} s"
+    );
 }
 
 /// The muscle entities a scene root spawned, in scene order.
