@@ -10,7 +10,10 @@
 //! clearance cells). Bones do not move within a substep, so after its first
 //! iteration a vertex that stayed within the smallest of its cells'
 //! remaining clearances (the workspace's bone margin) skips every cell at
-//! once: the cells would all have been skipped.
+//! once: the cells would all have been skipped. So does a substep's first
+//! check when none of the muscle's bones moved since the last one (a
+//! shoulder muscle while only the elbow flexes, a body at rest): the
+//! margins are as true as they were.
 //!
 //! A vertex's check reads and writes only its own position and cells, so a
 //! large muscle (a skin over a whole body: 13k vertices, every bone a
@@ -24,7 +27,7 @@ use crate::closest::{NO_TRIANGLE, SideMemo, TargetSet};
 use crate::constraints::outside_at_rest;
 use crate::constraints::{ParticleId, TargetId};
 use crate::muscle::Muscle;
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{Affine3A, Vec3, Vec3A, Vec4};
 
 /// How far from a bone a muscle's vertex must be for its bone contact to
 /// read the side from the bone's features (and, on a scanned bone's broken
@@ -73,6 +76,11 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         });
         ws.bone_groups.extend(groups);
     }
+    // Bones posed as at the last check leave every margin as true as it
+    // was (a margin is the room left before one of them), so the check
+    // skips by the margins as a later check of a substep does.
+    let bones_moved = first_of_substep
+        && record_bone_poses(&mut ws.bone_poses, &c.rigid, &ws.target_ids, targets);
     let input = ContactInput {
         p: &m.p,
         w: &m.w,
@@ -80,7 +88,7 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         groups: &ws.bone_groups,
         target_ids: &ws.target_ids,
         targets,
-        first_of_substep,
+        bones_moved,
         length_unit: m.length_unit,
         layer: c.walk_first_only,
         inside: &c.inside,
@@ -107,6 +115,37 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
     }
 }
 
+/// Records the pose of each bone among the targets (`rigid` by slot) in
+/// `poses`; whether any differs from the one recorded before (or none
+/// was).
+fn record_bone_poses<T: TargetSet + ?Sized>(
+    poses: &mut Vec<Affine3A>,
+    rigid: &[bool],
+    target_ids: &[TargetId],
+    targets: &T,
+) -> bool {
+    let bones = (target_ids.iter().zip(rigid)).filter_map(|(&id, &r)| r.then_some(id));
+    let mut moved = false;
+    let mut count = 0;
+    for (k, id) in bones.enumerate() {
+        let now = targets.target(id).transform;
+        match poses.get_mut(k) {
+            Some(pose) if *pose == now => {}
+            Some(pose) => {
+                *pose = now;
+                moved = true;
+            }
+            None => {
+                poses.push(now);
+                moved = true;
+            }
+        }
+        count = k + 1;
+    }
+    poses.truncate(count);
+    moved
+}
+
 /// Bone boxes per group of [`MuscleWorkspace::bone_groups`]: a skin
 /// vertex tests the boxes of the groups near it only (a group of
 /// consecutive bones, a hand's or a leg's, lies together).
@@ -127,7 +166,10 @@ struct ContactInput<'a, T: ?Sized> {
     groups: &'a [(usize, Vec3A, Vec3A)],
     target_ids: &'a [TargetId],
     targets: &'a T,
-    first_of_substep: bool,
+    /// A bone was posed otherwise than at the last check (the substep's
+    /// first check, bones that moved): every vertex is checked, whatever
+    /// its margin.
+    bones_moved: bool,
     /// The muscle's length unit (the margin's rounding allowance).
     length_unit: f32,
     /// The batch's `inside`: the targets each vertex was inside of at rest.
@@ -197,11 +239,12 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
             let mut x = self.p[v];
             run.settled[i] = x;
             if self.w[v] == 0.0 {
+                // Not checked: no margin to trust once it is free.
+                run.margin[i] = Vec4::ZERO;
                 continue;
             }
             let anchor = run.margin[i];
-            if !self.first_of_substep && x.distance_squared(anchor.truncate()) < anchor.w * anchor.w
-            {
+            if !self.bones_moved && x.distance_squared(anchor.truncate()) < anchor.w * anchor.w {
                 continue;
             }
             // The smallest remaining clearance over this vertex's bones.
@@ -295,6 +338,11 @@ mod tests {
     /// A surface layer of 738 vertices (more than [`CLOSEST_CHUNK`], so it
     /// is checked in chunks) around a bar-shaped bone, linked by one step.
     fn layer_around_a_bar() -> Solver {
+        layer_around_a_bar_on(TransformTrack::default())
+    }
+
+    /// [`layer_around_a_bar`] with the bar moved by `track`.
+    fn layer_around_a_bar_on(track: TransformTrack) -> Solver {
         let mut solver = Solver::new(SolverSettings::default()).unwrap();
         let bar = MeshGenerator::Box {
             center: Vec3::ZERO,
@@ -303,7 +351,7 @@ mod tests {
         }
         .build("bar")
         .unwrap();
-        let bone = solver.add_bone("bar", TransformTrack::default(), Some(&bar));
+        let bone = solver.add_bone("bar", track, Some(&bar));
         let layer = MeshGenerator::Ellipsoid {
             center: Vec3::ZERO,
             radii: Vec3::new(0.03, 0.12, 0.03),
@@ -436,5 +484,71 @@ mod tests {
                 p.x *= 0.5;
             }
         }
+    }
+
+    /// A substep's first check after the bar stood still trusts the
+    /// margins (the same bits as checking every vertex); after the bar
+    /// moved into the layer it checks every vertex and pushes every one
+    /// the bar now holds back out. Seen to fail with the margins trusted
+    /// whatever the bar did.
+    #[test]
+    fn margins_are_trusted_across_substeps_only_while_the_bones_stand_still() {
+        let solver = layer_around_a_bar();
+        let mut targets = solver.targets.clone();
+        let (mut m, mut ws) = (solver.muscles[0].clone(), solver.workspaces[0].clone());
+        let bits = |m: &Muscle| -> Vec<u32> {
+            m.p.iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        // Margins from a first check, every vertex outside the bar.
+        bone_contacts(&mut m, &mut ws, targets.as_slice(), true, false);
+        assert!(ws.bone_margin.iter().all(|a| a.w > 0.0));
+        // The bar stands still, the vertices move a little: trusted.
+        for p in &mut m.p {
+            p.x *= 0.98;
+        }
+        let (mut forgetful, mut forgetful_ws) = (m.clone(), ws.clone());
+        forgetful_ws.bone_poses.clear();
+        bone_contacts(&mut m, &mut ws, targets.as_slice(), true, false);
+        bone_contacts(
+            &mut forgetful,
+            &mut forgetful_ws,
+            targets.as_slice(),
+            true,
+            false,
+        );
+        assert_eq!(bits(&m), bits(&forgetful));
+        // The bar moves 1.5 cm into the layer's side.
+        let moved = Affine3A::from_translation(Vec3::new(0.015, 0.0, 0.0));
+        targets[0].set_transform(moved);
+        let bar = &targets[0];
+        let inside = |p: &Vec3| {
+            bar.closest_within(*p, None, f32::INFINITY)
+                .unwrap()
+                .signed_distance
+                < -1e-6
+        };
+        let held: Vec<bool> = m.p.iter().map(inside).collect();
+        let count = held.iter().filter(|&&h| h).count();
+        assert!(count > 20, "{count} vertices inside the moved bar");
+        let (mut forgetful, mut forgetful_ws) = (m.clone(), ws.clone());
+        forgetful_ws.bone_poses.clear();
+        let before = m.p.clone();
+        bone_contacts(&mut m, &mut ws, targets.as_slice(), true, false);
+        bone_contacts(
+            &mut forgetful,
+            &mut forgetful_ws,
+            targets.as_slice(),
+            true,
+            false,
+        );
+        assert_eq!(bits(&m), bits(&forgetful));
+        let missed = (before.iter().zip(&m.p).zip(&held)).filter(|((a, b), h)| **h && a == b);
+        assert_eq!(
+            missed.count(),
+            0,
+            "a vertex inside the moved bar was not pushed"
+        );
     }
 }

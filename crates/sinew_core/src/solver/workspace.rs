@@ -105,11 +105,16 @@ pub struct MuscleWorkspace {
     /// Bone cells per Sliding constraint: the muscle's bone targets, at
     /// most [`MAX_BONE_WAYS`].
     pub(crate) bone_ways: usize,
-    /// Bone contacts' margin per Sliding constraint within a substep (bones
-    /// do not move between its iterations): where the vertex was at the
-    /// substep's first check, and how far it can move from there before one
-    /// of its `clearance` cells needs a check.
+    /// Bone contacts' margin per Sliding constraint while its bones do not
+    /// move (between a substep's iterations, or longer where they stand
+    /// still): where the vertex was at its last full check, and how far it
+    /// can move from there before one of its `clearance` cells needs a
+    /// check (0 for a vertex left unchecked, a pinned one).
     pub(crate) bone_margin: Vec<Vec4>,
+    /// The poses of the muscle's bones (its rigid targets, in slot order)
+    /// at bone contacts' last check: a substep's first check trusts the
+    /// margins when none moved since.
+    pub(crate) bone_poses: Vec<glam::Affine3A>,
     /// Bone contacts' packed world boxes of the muscle's bones, `(target
     /// slot, min, max)`: rebuilt in a substep's first iteration (bones are
     /// posed once per substep) and after a relink (emptied).
@@ -230,6 +235,7 @@ impl MuscleWorkspace {
         self.bone_margin.clear();
         self.bone_margin
             .resize(m.constraints.sliding.len(), Vec4::ZERO);
+        self.bone_poses.clear();
         self.bone_boxes.clear();
         self.bone_groups.clear();
         self.side_memo.clear();
