@@ -228,22 +228,21 @@ pub fn bind_constraints(m: &Muscle) -> PointBatch {
 /// projection, with the attachments'): skinned, or along the muscle's line
 /// of action where its held shape follows one ([`Muscle::hold_line`]).
 pub fn update_bind_goals(m: &mut Muscle, pose: &impl Fn(usize) -> Affine3A) {
-    let line = m
-        .hold_line
-        .as_ref()
-        .map(|line| line.pose(pose, LineShape::of(&m.params)));
+    let shape = LineShape::of(&m.params);
+    let line = m.hold_line.as_mut().map(|line| line.pose_kept(pose, shape));
     update_bind_goals_in(m, pose, line.as_ref());
 }
 
 /// [`update_bind_goals`] with the hold line's pose already taken (`line`,
-/// `None` for a muscle without one).
+/// by [`crate::muscle::HoldLine::pose_kept`]; `None` for a muscle without
+/// one).
 pub(crate) fn update_bind_goals_in(
     m: &mut Muscle,
     pose: &impl Fn(usize) -> Affine3A,
     line: Option<&LinePose>,
 ) {
-    if let Some(now) = line.filter(|_| m.hold_line.is_some() && m.params.rest_follows_hold) {
-        m.follow_held_shape(now);
+    if line.is_some() && m.hold_line.is_some() && m.params.rest_follows_hold {
+        m.follow_held_shape();
         return;
     }
     let goals = m.constraints.bind.goal.iter_mut().zip(&m.binding);

@@ -168,7 +168,6 @@ impl Muscle {
             activation_reported: false,
             length_unit,
             topology: 0,
-            held_goals: Vec::new(),
         };
         muscle.build_own_constraints(closed);
         for (bone, v) in held {

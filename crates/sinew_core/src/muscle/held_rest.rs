@@ -29,28 +29,29 @@
 //! wider: `β √λ`. Along them `λ` shortens the held length, which pulls the
 //! muscle taut between its tendons.
 
-use super::{LinePose, Muscle};
+use super::Muscle;
 use crate::constraints::{ActivationScale, DistanceBatch};
 
 impl Muscle {
     /// For a muscle whose rest lengths follow its held shape: every
-    /// particle's goal in the pose `line` (the Bind goals among them) and
-    /// the Fiber, Branch and Internal rest lengths from them.
-    pub(crate) fn follow_held_shape(&mut self, line: &LinePose) {
-        let Some(hold) = &self.hold_line else {
+    /// particle's goal in the pose its line last took
+    /// ([`super::HoldLine::pose_kept`]; the Bind goals among them) and the
+    /// Fiber, Branch and Internal rest lengths from them.
+    pub(crate) fn follow_held_shape(&mut self) {
+        let hold = self.hold_line.as_mut();
+        let Some(goals) = hold.and_then(|h| h.kept_goals(&self.rest)) else {
             return;
         };
-        hold.goals_into(line, &self.rest, &mut self.held_goals);
         let c = &mut self.constraints;
         for (goal, b) in c.bind.goal.iter_mut().zip(&self.binding) {
-            *goal = self.held_goals[b.vertex.index()];
+            *goal = goals[b.vertex.index()];
         }
         let p = &self.params;
         let a0 = p.rest_activation.min(0.95);
         let lambda = ActivationScale::new(p.activation, a0, p.max_contraction, None).shortening;
         let across = lambda.max(0.0).sqrt();
         for batch in [&mut c.fiber, &mut c.branch, &mut c.internal] {
-            follow(batch, &self.rest, &self.held_goals, across);
+            follow(batch, &self.rest, goals, across);
         }
     }
 

@@ -131,9 +131,6 @@ pub struct Muscle {
     /// on or off: what the solver derived from them (colour plans, Jacobi
     /// incidence, in its `MuscleWorkspace`) is stale once it differs.
     topology: u64,
-    /// Every particle's held-shape goal, kept between substeps for
-    /// [`MuscleParams::rest_follows_hold`] (empty until it is needed).
-    held_goals: Vec<Vec3>,
 }
 
 impl Muscle {

@@ -299,10 +299,11 @@ pub fn update_attachment_goals(
             k += 1;
         }
     }
+    let shape = LineShape::of(&m.params);
     let line = m
         .hold_line
-        .as_ref()
-        .map(|line| line.pose(bind_pose, LineShape::of(&m.params)));
+        .as_mut()
+        .map(|line| line.pose_kept(bind_pose, shape));
     if let (Some(hold), Some(now)) = (&m.hold_line, &line) {
         let c = &mut m.constraints;
         hold.turn_attachments(
