@@ -167,6 +167,58 @@ fn a_changed_scene_asset_is_spawned_again() {
     );
 }
 
+/// An app whose assets are read from a folder of their own, with P1
+/// spawned from its `scene.ron` there.
+struct SceneFileApp {
+    /// The folder (`name`_<pid> under the target's temporary folder).
+    dir: PathBuf,
+    /// `scene.ron` in it.
+    file: PathBuf,
+    app: App,
+    handle: Handle<SinewScene>,
+    /// The scene's root, its P1 spawned.
+    root: Entity,
+}
+
+impl SceneFileApp {
+    /// The folder `name`_<pid> with P1 saved in it, read by an app (`watch`:
+    /// with the file watcher) that has spawned it.
+    fn new(name: &str, watch: bool) -> Self {
+        let dir =
+            Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("scene.ron");
+        builtin("P1").unwrap().save(&file).unwrap();
+        let mut app = App::new();
+        app.add_plugins((
+            MinimalPlugins,
+            bevy::asset::AssetPlugin {
+                file_path: dir.to_string_lossy().into_owned(),
+                watch_for_changes_override: watch.then_some(true),
+                ..default()
+            },
+            bevy::transform::TransformPlugin,
+            SinewPlugin::default().every_update(),
+        ));
+        let handle: Handle<SinewScene> = app.world().resource::<AssetServer>().load("scene.ron");
+        let root = app
+            .world_mut()
+            .spawn(SinewSceneRoot::Asset(handle.clone()))
+            .id();
+        let loaded = common::update_for(&mut app, common::WAIT_SECONDS, |app| {
+            spawned_muscles(app, root).len() == 1
+        });
+        assert!(loaded, "P1 loaded");
+        Self {
+            dir,
+            file,
+            app,
+            handle,
+            root,
+        }
+    }
+}
+
 /// The muscles spawned under `root` so far (none before its scene loads).
 fn spawned_muscles(app: &App, root: Entity) -> Vec<Entity> {
     app.world()
@@ -177,33 +229,14 @@ fn spawned_muscles(app: &App, root: Entity) -> Vec<Entity> {
 
 #[test]
 fn an_own_save_reloaded_more_than_once_is_not_spawned_again() {
-    let dir =
-        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("sinew_own_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("scene.ron");
-    builtin("P1").unwrap().save(&file).unwrap();
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::asset::AssetPlugin {
-            file_path: dir.to_string_lossy().into_owned(),
-            ..default()
-        },
-        bevy::transform::TransformPlugin,
-        SinewPlugin::default().every_update(),
-    ));
-    let handle: Handle<SinewScene> = app.world().resource::<AssetServer>().load("scene.ron");
-    let root = app
-        .world_mut()
-        .spawn(SinewSceneRoot::Asset(handle.clone()))
-        .id();
+    let SceneFileApp {
+        dir,
+        file,
+        mut app,
+        handle,
+        root,
+    } = SceneFileApp::new("sinew_own", false);
     let spawned = |app: &App| spawned_muscles(app, root);
-    assert!(
-        common::update_for(&mut app, common::WAIT_SECONDS, |app| {
-            spawned(app).len() == 1
-        }),
-        "P1 loaded"
-    );
     let before = spawned(&app);
     app.world_mut()
         .write_message(SaveScene { root, path: None });
@@ -238,31 +271,14 @@ fn an_own_save_reloaded_more_than_once_is_not_spawned_again() {
 #[cfg(feature = "hot_reload")]
 #[test]
 fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
-    let dir =
-        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("sinew_hot_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("scene.ron");
-    builtin("P1").unwrap().save(&file).unwrap();
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::asset::AssetPlugin {
-            file_path: dir.to_string_lossy().into_owned(),
-            watch_for_changes_override: Some(true),
-            ..default()
-        },
-        bevy::transform::TransformPlugin,
-        SinewPlugin::default().every_update(),
-    ));
-    let handle = app.world().resource::<AssetServer>().load("scene.ron");
-    let root = app.world_mut().spawn(SinewSceneRoot::Asset(handle)).id();
+    let SceneFileApp {
+        dir,
+        file,
+        mut app,
+        root,
+        ..
+    } = SceneFileApp::new("sinew_hot", true);
     let spawned = |app: &App| spawned_muscles(app, root);
-    assert!(
-        common::update_for(&mut app, common::WAIT_SECONDS, |app| {
-            spawned(app).len() == 1
-        }),
-        "P1 loaded"
-    );
     let before = spawned(&app);
 
     // Saved over its own file: the watcher reloads it, the scene keeps running.
@@ -280,4 +296,5 @@ fn a_scene_file_edited_on_disk_is_spawned_again_but_not_its_own_save() {
         }),
         "the edited file was not spawned again"
     );
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -330,6 +330,7 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
 mod tests {
     use super::*;
     use crate::animation::TransformTrack;
+    use crate::closest::TargetSurface;
     use crate::mesh::primitives::MeshGenerator;
     use crate::muscle::{MuscleDesc, MuscleParams, Roots, TargetRef, VertexMaps};
     use crate::solver::params::{FrameParams, Parallelism};
@@ -496,11 +497,6 @@ mod tests {
         let solver = layer_around_a_bar();
         let mut targets = solver.targets.clone();
         let (mut m, mut ws) = (solver.muscles[0].clone(), solver.workspaces[0].clone());
-        let bits = |m: &Muscle| -> Vec<u32> {
-            m.p.iter()
-                .flat_map(|p| p.to_array().map(f32::to_bits))
-                .collect()
-        };
         // Margins from a first check, every vertex outside the bar.
         bone_contacts(&mut m, &mut ws, targets.as_slice(), true, false);
         assert!(ws.bone_margin.iter().all(|a| a.w > 0.0));
@@ -508,17 +504,7 @@ mod tests {
         for p in &mut m.p {
             p.x *= 0.98;
         }
-        let (mut forgetful, mut forgetful_ws) = (m.clone(), ws.clone());
-        forgetful_ws.bone_poses.clear();
-        bone_contacts(&mut m, &mut ws, targets.as_slice(), true, false);
-        bone_contacts(
-            &mut forgetful,
-            &mut forgetful_ws,
-            targets.as_slice(),
-            true,
-            false,
-        );
-        assert_eq!(bits(&m), bits(&forgetful));
+        first_check_as_if_the_bones_moved(&mut m, &mut ws, &targets);
         // The bar moves 1.5 cm into the layer's side.
         let moved = Affine3A::from_translation(Vec3::new(0.015, 0.0, 0.0));
         targets[0].set_transform(moved);
@@ -532,23 +518,33 @@ mod tests {
         let held: Vec<bool> = m.p.iter().map(inside).collect();
         let count = held.iter().filter(|&&h| h).count();
         assert!(count > 20, "{count} vertices inside the moved bar");
-        let (mut forgetful, mut forgetful_ws) = (m.clone(), ws.clone());
-        forgetful_ws.bone_poses.clear();
         let before = m.p.clone();
-        bone_contacts(&mut m, &mut ws, targets.as_slice(), true, false);
-        bone_contacts(
-            &mut forgetful,
-            &mut forgetful_ws,
-            targets.as_slice(),
-            true,
-            false,
-        );
-        assert_eq!(bits(&m), bits(&forgetful));
+        first_check_as_if_the_bones_moved(&mut m, &mut ws, &targets);
         let missed = (before.iter().zip(&m.p).zip(&held)).filter(|((a, b), h)| **h && a == b);
         assert_eq!(
             missed.count(),
             0,
             "a vertex inside the moved bar was not pushed"
         );
+    }
+
+    /// A substep's first check of `m`, whose bits are asserted to be those
+    /// of the same check with the bones' recorded poses forgotten (every
+    /// vertex checked).
+    fn first_check_as_if_the_bones_moved(
+        m: &mut Muscle,
+        ws: &mut MuscleWorkspace,
+        targets: &[TargetSurface],
+    ) {
+        let bits = |m: &Muscle| -> Vec<u32> {
+            m.p.iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        let (mut forgetful, mut forgetful_ws) = (m.clone(), ws.clone());
+        forgetful_ws.bone_poses.clear();
+        bone_contacts(m, ws, targets, true, false);
+        bone_contacts(&mut forgetful, &mut forgetful_ws, targets, true, false);
+        assert_eq!(bits(m), bits(&forgetful));
     }
 }
