@@ -28,6 +28,7 @@ use crate::constraints::outside_at_rest;
 use crate::constraints::{ParticleId, TargetId};
 use crate::muscle::Muscle;
 use glam::{Affine3A, Vec3, Vec3A, Vec4};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// How far from a bone a muscle's vertex must be for its bone contact to
 /// read the side from the bone's features (and, on a scanned bone's broken
@@ -92,6 +93,7 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         length_unit: m.length_unit,
         layer: c.walk_first_only,
         inside: &c.inside,
+        pushed: AtomicBool::new(false),
     };
     let n = c.len();
     ws.bone_settled.resize(n, Vec3::ZERO);
@@ -110,8 +112,11 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
     } else {
         input.check(run);
     }
-    for (id, x) in c.particle.iter().zip(&ws.bone_settled) {
-        m.p[id.index()] = *x;
+    // Every vertex settled where it was unless one was pushed out.
+    if input.pushed.into_inner() {
+        for (id, x) in c.particle.iter().zip(&ws.bone_settled) {
+            m.p[id.index()] = *x;
+        }
     }
 }
 
@@ -178,6 +183,9 @@ struct ContactInput<'a, T: ?Sized> {
     /// ([`crate::closest::TargetSurface::settle_side`]); a muscle's only
     /// beyond [`SIDE_READ_BEYOND`].
     layer: bool,
+    /// Whether the check pushed a vertex out of a bone (else every vertex
+    /// settled where it was and nothing is written back).
+    pushed: AtomicBool,
 }
 
 /// A run of Sliding constraints' bone-contact cells: the batch's slices
@@ -302,6 +310,7 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
                     cell.warm = hit.triangle;
                     if hit.signed_distance < 0.0 {
                         x -= Vec3::from(hit.normal) * hit.signed_distance;
+                        self.pushed.store(true, Ordering::Relaxed);
                         cell.clearance = Vec4::ZERO;
                         margin = 0.0;
                     } else {
