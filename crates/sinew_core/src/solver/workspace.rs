@@ -7,6 +7,7 @@
 //! candidate_warm    closest data's last triangle per (vertex, candidate)
 //! bone_cells        bone contacts' last triangle and clearance per
 //! bone_margin       (vertex, bone it is near); their margin per vertex
+//! bone_poses        the bones' poses at the last check (margins hold while they stand)
 //! bone_boxes        the bones' world boxes, for bone contacts
 //! side_memo         per vertex, its last winding-number sides of its bones
 //! switched_on       the Soft, Hard and Sliding constraints that are on, this substep
