@@ -132,9 +132,9 @@ fn record_bone_poses<T: TargetSet + ?Sized>(
     let bones = (target_ids.iter().zip(rigid)).filter_map(|(&id, &r)| r.then_some(id));
     let mut moved = false;
     let mut count = 0;
-    for (k, id) in bones.enumerate() {
+    for id in bones {
         let now = targets.target(id).transform;
-        match poses.get_mut(k) {
+        match poses.get_mut(count) {
             Some(pose) if *pose == now => {}
             Some(pose) => {
                 *pose = now;
@@ -145,7 +145,7 @@ fn record_bone_poses<T: TargetSet + ?Sized>(
                 moved = true;
             }
         }
-        count = k + 1;
+        count += 1;
     }
     poses.truncate(count);
     moved
@@ -348,11 +348,6 @@ mod tests {
     /// A surface layer of 738 vertices (more than [`CLOSEST_CHUNK`], so it
     /// is checked in chunks) around a bar-shaped bone, linked by one step.
     fn layer_around_a_bar() -> Solver {
-        layer_around_a_bar_on(TransformTrack::default())
-    }
-
-    /// [`layer_around_a_bar`] with the bar moved by `track`.
-    fn layer_around_a_bar_on(track: TransformTrack) -> Solver {
         let mut solver = Solver::new(SolverSettings::default()).unwrap();
         let bar = MeshGenerator::Box {
             center: Vec3::ZERO,
@@ -361,7 +356,7 @@ mod tests {
         }
         .build("bar")
         .unwrap();
-        let bone = solver.add_bone("bar", track, Some(&bar));
+        let bone = solver.add_bone("bar", TransformTrack::default(), Some(&bar));
         let layer = MeshGenerator::Ellipsoid {
             center: Vec3::ZERO,
             radii: Vec3::new(0.03, 0.12, 0.03),
