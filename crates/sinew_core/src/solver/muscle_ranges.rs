@@ -66,6 +66,7 @@ pub(super) fn for_each_item_in_ranges<T: Send>(
         .into_par_iter()
         .with_max_len(1)
         .for_each(|member| {
+            let outermost = Member::enter();
             {
                 // Counted as finished even if `f` panics, so that no member
                 // waits for it (the panic reaches the caller).
@@ -81,12 +82,40 @@ pub(super) fn for_each_item_in_ranges<T: Send>(
                     }
                 }
             }
-            while finished.load(Ordering::Acquire) < members {
+            // Only the outermost member of a thread waits: one started
+            // inside another's item would wait for that item, beneath it
+            // on this thread (the rayon join it returns to finishes the
+            // pass all the same).
+            while outermost.0 && finished.load(Ordering::Acquire) < members {
                 if rayon::yield_now() != Some(rayon::Yield::Executed) {
                     std::hint::spin_loop();
                 }
             }
         });
+}
+
+thread_local! {
+    /// Whether this thread is running a member of a pass in ranges.
+    static IN_MEMBER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// A member running on this thread; `.0`: the thread's outermost (it
+/// was running no other member when this one started). Dropped when the
+/// member ends, unwinding too.
+struct Member(bool);
+
+impl Member {
+    fn enter() -> Self {
+        Self(!IN_MEMBER.replace(true))
+    }
+}
+
+impl Drop for Member {
+    fn drop(&mut self) {
+        if self.0 {
+            IN_MEMBER.set(false);
+        }
+    }
 }
 
 /// A range: the index of its first item, and its items left, numbered from 0.
@@ -139,5 +168,45 @@ mod tests {
             let runs = runs.into_inner().unwrap();
             assert_eq!(runs, vec![1; count], "{count} on {threads}");
         }
+    }
+
+    /// Items that fork work of their own (a large muscle's chunks, split
+    /// by `rayon::join`) on many threads. A thread waiting inside an item
+    /// for the half another took runs other work meanwhile, and may start
+    /// a member no thread has started yet; that member must not wait for
+    /// the members to finish, one of them the item beneath it on its own
+    /// thread. 144 items of 8 forked pieces each, 100 passes on 16
+    /// threads: with every member waiting, this hung within seconds.
+    #[test]
+    fn items_that_fork_their_own_work_finish_on_many_threads() {
+        fn pieces(n: u32) -> u64 {
+            if n == 1 {
+                return (0..20_000u64).map(std::hint::black_box).sum();
+            }
+            let (a, b) = rayon::join(|| pieces(n / 2), || pieces(n - n / 2));
+            a + b
+        }
+        let threads = 16;
+        let (sender, receiver) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut items = vec![0u64; 144];
+            pool.install(|| {
+                for _ in 0..100 {
+                    for_each_item_in_ranges(&mut items, threads, &|_, item: &mut u64| {
+                        *item += pieces(8);
+                    });
+                }
+            });
+            sender.send(items).ok();
+        });
+        let items = receiver
+            .recv_timeout(std::time::Duration::from_secs(120))
+            .expect("the passes hung");
+        let each = 100 * 8 * (0..20_000u64).sum::<u64>();
+        assert!(items.iter().all(|&i| i == each));
     }
 }
