@@ -20,8 +20,12 @@
 //! The members are a parallel iterator over the threads' count (no
 //! allocation); a member that has not started when the others finish is
 //! run by a waiting one, whose spin runs pending rayon work, and finds
-//! nothing left. Muscles read each other only through snapshots, so which
-//! thread runs which gives the same bits.
+//! nothing left. Only a thread's outermost member waits: a thread waiting
+//! inside a muscle for a chunk another thread took runs pending work too,
+//! and a member it starts there would wait for that muscle, beneath it on
+//! the same thread, for ever (a 16-thread probe with smaller closest-data
+//! chunks hung T7 so). Muscles read each other only through snapshots, so
+//! which thread runs which gives the same bits.
 
 use super::parallel::MusclePair;
 use super::workspace::MuscleWorkspace;
