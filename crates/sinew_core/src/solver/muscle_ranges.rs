@@ -24,14 +24,20 @@
 //! inside a muscle for a chunk another thread took runs pending work too,
 //! and a member it starts there would wait for that muscle, beneath it on
 //! the same thread, for ever (a 16-thread probe with smaller closest-data
-//! chunks hung T7 so). Muscles read each other only through snapshots, so
-//! which thread runs which gives the same bits.
+//! chunks hung T7 so). And no member spins longer than `SPIN_AT_MOST`
+//! (0.5 ms, several times the longest muscle's block): a worker that took
+//! a muscle's chunk and started a member while it waited inside it is
+//! outermost, yet holds that muscle beneath it; after the bound the member
+//! waits in rayon's join, which runs the chunk's muscle on. Muscles read
+//! each other only through snapshots, so which thread runs which gives the
+//! same bits.
 
 use super::parallel::MusclePair;
 use super::workspace::MuscleWorkspace;
 use crate::muscle::Muscle;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 /// Most ranges, and members: on a pool of more threads, at most this many
 /// of them share the items out.
@@ -90,12 +96,30 @@ pub(super) fn for_each_item_in_ranges<T: Send>(
             // inside another's item would wait for that item, beneath it
             // on this thread (the rayon join it returns to finishes the
             // pass all the same).
-            while outermost.0 && finished.load(Ordering::Acquire) < members {
-                if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                    std::hint::spin_loop();
-                }
+            if outermost.0 {
+                wait_spinning(&finished, members);
             }
         });
+}
+
+/// Longest a member waits spinning for the others ([`wait_spinning`]):
+/// far above a muscle's block (T7's largest, five iterations, ≈ 0.1 ms on
+/// one thread), so a pass ends on it as before.
+const SPIN_AT_MOST: Duration = Duration::from_micros(500);
+
+/// Waits until `members` members are `finished`, spinning and running
+/// pending rayon work meanwhile (module docs) — for at most
+/// [`SPIN_AT_MOST`], then returns to the pass's rayon join, which waits
+/// as rayon does. The bound keeps any wait that cannot end from hanging:
+/// a worker that took a chunk of a muscle and, waiting inside it, started
+/// a member, holds that muscle's member beneath the waiting one.
+fn wait_spinning(finished: &AtomicUsize, members: usize) {
+    let start = Instant::now();
+    while finished.load(Ordering::Acquire) < members && start.elapsed() < SPIN_AT_MOST {
+        if rayon::yield_now() != Some(rayon::Yield::Executed) {
+            std::hint::spin_loop();
+        }
+    }
 }
 
 thread_local! {
@@ -212,5 +236,21 @@ mod tests {
             .expect("the passes hung");
         let each = 100 * 8 * (0..20_000u64).sum::<u64>();
         assert!(items.iter().all(|&i| i == each));
+    }
+
+    /// A wait for members that never finish ends after its bound (with
+    /// no bound it never returned).
+    #[test]
+    fn a_wait_for_members_that_never_finish_ends() {
+        let (sender, receiver) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let start = Instant::now();
+            wait_spinning(&AtomicUsize::new(1), 2);
+            sender.send(start.elapsed()).ok();
+        });
+        let waited = receiver
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the wait never ended");
+        assert!(waited >= SPIN_AT_MOST, "{waited:?}");
     }
 }
