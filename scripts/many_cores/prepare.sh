@@ -3,10 +3,13 @@
 # release `sinew` here (optionally also the build of another commit, for an
 # A/B pair), strips it into `devrun/` (ignored through .git/info/exclude)
 # with `scripts/many_cores/bench.sh`, and makes sure the fitted scene the
-# character's figures need exists. Carry `devrun` and `assets/fitted` to
-# the other machine and run `bash devrun/bench.sh` there from the
+# character's figures need exists. Carry `devrun`,
+# `assets/fitted/t7_makehuman/t7_makehuman.ron` and
+# `assets/fitted/t7_makehuman/meshes` to the other machine (not the whole
+# `assets/fitted`: other fitted scenes there can push the copy past the
+# device tool's 64 MiB) and run `bash devrun/bench.sh` there from the
 # repository root (it needs only bash, coreutils and the assets the
-# repository tracks).
+# repository tracks). The whole script takes 2–3 minutes on 16 cores.
 #
 #   scripts/many_cores/prepare.sh            # the working tree's build
 #   scripts/many_cores/prepare.sh c499185    # and that commit's, as "old"
