@@ -1,13 +1,19 @@
 #!/usr/bin/env bash
 # The many-core timings of issues 16 and 18 (README "On 16 cores"), run on
 # the lent machine from the repository root after
-# scripts/many_cores/prepare.sh: T7's walk on 1, 2, 4, 8 and 16 threads and
-# its run on 1 and 16, eight bodies, and the fitted character; with an
-# "old" build beside it, the 16-thread figures as interleaved A/B pairs.
+# scripts/many_cores/prepare.sh. The lent machine's own speed moves by up
+# to half between minutes, so every ratio is taken from adjacent runs:
+# T7's walk and run on the top thread count and on 1 thread alternate in
+# pairs; eight bodies and the fitted character are run three and two
+# times; T7's walk on 2, 4 and 8 threads once each. With an "old" build
+# beside it, the top-thread figures alternate old and new as A/B pairs.
 # THREADS overrides the top thread count (default: every core); SMOKE=1
-# runs every command on two frames, to check the script.
+# runs every command on two frames, to check the script. Each command is
+# stopped after LIMIT seconds (default 90): a hang costs one line, not the
+# machine's lease.
 set -uo pipefail
 top="${THREADS:-$(nproc)}"
+limit="${LIMIT:-90}"
 T7=assets/scenes/t7.ron
 FIT=assets/fitted/t7_makehuman/t7_makehuman.ron
 builds=(new)
@@ -25,26 +31,34 @@ bench() {
         set -- "${args[@]}" --from 2 --frames 2 --runs 1
     fi
     echo "== $build: sinew bench $*"
-    "devrun/sinew_$build" bench "$@" |
+    timeout "$limit" "devrun/sinew_$build" bench "$@" |
         grep -E '^(scene|read|integrate|update|closest|project|apply|write|blocks total|surface|ns per)' |
         cut -c1-170
+    [ "${PIPESTATUS[0]}" = 124 ] && echo "!! stopped after $limit s"
 }
+for _ in 1 2 3; do
+    for b in "${builds[@]}"; do
+        bench "$b" "$T7" --from 120 --frames 60 --runs 1 --threads "$top"
+    done
+    bench new "$T7" --from 120 --frames 60 --runs 1 --threads 1
+done
 for _ in 1 2; do
     for b in "${builds[@]}"; do
-        bench "$b" "$T7" --from 120 --frames 60 --runs 3 --threads "$top"
+        bench "$b" "$T7" --from 420 --frames 60 --runs 1 --threads "$top"
+    done
+    bench new "$T7" --from 420 --frames 60 --runs 1 --threads 1
+done
+for _ in 1 2 3; do
+    for b in "${builds[@]}"; do
+        bench "$b" "$T7" --instances 8 --from 120 --frames 30 --runs 1 --threads "$top"
     done
 done
-for b in "${builds[@]}"; do
-    bench "$b" "$FIT" --from 120 --frames 60 --runs 2 --threads "$top"
+for _ in 1 2; do
+    for b in "${builds[@]}"; do
+        bench "$b" "$FIT" --from 120 --frames 40 --runs 1 --threads "$top"
+    done
 done
-for b in "${builds[@]}"; do
-    bench "$b" "$T7" --instances 8 --from 120 --frames 30 --runs 2 --threads "$top" --method colored
+for t in 2 4 8; do
+    [ "$t" -lt "$top" ] && bench new "$T7" --from 120 --frames 60 --runs 1 --threads "$t"
 done
-# The crowd under Sequential too: ×0.92–0.96 of Colored on 16 threads.
-bench new "$T7" --instances 8 --from 120 --frames 30 --runs 2 --threads "$top" --method sequential
-bench new "$T7" --from 420 --frames 60 --runs 3 --threads "$top"
-for t in 1 2 4 8; do
-    [ "$t" -lt "$top" ] && bench new "$T7" --from 120 --frames 60 --runs 3 --threads "$t"
-done
-bench new "$T7" --from 420 --frames 60 --runs 2 --threads 1
 bench new "$FIT" --from 120 --frames 30 --runs 1 --threads 1

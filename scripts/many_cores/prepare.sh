@@ -9,7 +9,7 @@
 # `assets/fitted`: other fitted scenes there can push the copy past the
 # device tool's 64 MiB) and run `bash devrun/bench.sh` there from the
 # repository root (it needs only bash, coreutils and the assets the
-# repository tracks). The whole script takes 2–3 minutes on 16 cores.
+# repository tracks). The whole script takes about 3 minutes on 16 cores (4 with an old build).
 #
 #   scripts/many_cores/prepare.sh            # the working tree's build
 #   scripts/many_cores/prepare.sh c499185    # and that commit's, as "old"
