@@ -196,6 +196,9 @@ pub struct FrameTimes {
     /// Constraint-iterations the frames projected, mean per frame: each
     /// muscle's active constraints × its iterations × the substeps.
     pub work: f64,
+    /// The surface layers' own tasks, ms/frame, by phase
+    /// ([`sinew_core::LayerTimings`]: closest data, sweep, finish).
+    pub layers: [f64; 3],
 }
 
 /// Whether `solver` runs its muscle passes on its worker threads: a scene
@@ -225,6 +228,7 @@ pub fn active_work(solver: &Solver) -> (usize, f64) {
 pub fn time_frames(solver: &mut Solver, frames: u32) -> FrameTimes {
     let frames = frames.max(1);
     let mut blocks = [Duration::ZERO; 7];
+    let mut layers = [Duration::ZERO; 3];
     let mut wall = Duration::ZERO;
     let (mut active, mut work) = (0.0, 0.0);
     for _ in 0..frames {
@@ -235,6 +239,9 @@ pub fn time_frames(solver: &mut Solver, frames: u32) -> FrameTimes {
         for (b, d) in blocks.iter_mut().zip(t.as_array()) {
             *b += d;
         }
+        for (l, d) in layers.iter_mut().zip(t.layers.as_array()) {
+            *l += d;
+        }
         let (n, w) = active_work(solver);
         active += n as f64;
         work += w;
@@ -242,6 +249,7 @@ pub fn time_frames(solver: &mut Solver, frames: u32) -> FrameTimes {
     let per_frame = |d: Duration| d.as_secs_f64() * 1e3 / frames as f64;
     FrameTimes {
         blocks: blocks.map(per_frame),
+        layers: layers.map(per_frame),
         wall: per_frame(wall),
         active: active / frames as f64,
         work: work / frames as f64,
@@ -302,6 +310,23 @@ fn run_once(args: &BenchArgs, timers: bool, bodies: Bodies) -> Result<RunResult,
     })
 }
 
+/// The surface layers' own tasks by phase (medians over the runs, one list
+/// per phase) against `iterate_ms`, the closest-data and project blocks
+/// together: where the tasks take as long as those blocks, the layers are
+/// what the frame waits for. Nothing when they were not timed (a sweep
+/// colour by colour across muscles).
+fn print_layer_tasks(phases: &[Vec<f64>], iterate_ms: f64) {
+    let [closest, sweep, finish] = [0, 1, 2].map(|k| median(phases[k].clone()));
+    let total = closest + sweep + finish;
+    if total <= 0.0 {
+        return;
+    }
+    println!(
+        "surface layers' own tasks: {total:.4} ms/frame ({:.0} % of closest data + project, {iterate_ms:.4}): closest data {closest:.4}, sweep {sweep:.4}, bone contacts and staging {finish:.4}",
+        100.0 * total / iterate_ms.max(1e-12)
+    );
+}
+
 /// Cost of one `Instant::now()` on this machine, in ns (median of 9 batches).
 fn clock_read_ns() -> f64 {
     const N: u32 = 100_000;
@@ -332,10 +357,14 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
     // the difference is the layers' own line.
     let layers = surface_layers(&load_scene(&args.scene)?.0);
     let mut muscles_only: Vec<Vec<f64>> = vec![Vec::new(); 8];
+    let mut layer_phases: Vec<Vec<f64>> = vec![Vec::new(); 3];
     for _ in 0..runs {
         let r = run_once(args, true, Bodies::All)?;
         for (k, v) in r.times.blocks.iter().enumerate() {
             blocks[k].push(*v);
+        }
+        for (k, v) in r.times.layers.iter().enumerate() {
+            layer_phases[k].push(*v);
         }
         walls.push(r.times.wall);
         actives.push(r.times.active);
@@ -414,6 +443,7 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
             wall - alone[7],
             alone[7]
         );
+        print_layer_tasks(&layer_phases, medians[3] + medians[4]);
     }
     println!("{:<16}{:>12.4}   ({:.0} fps)", "wall", wall, 1e3 / wall);
     let ns = wall * 1e6 / work.max(1.0);

@@ -63,6 +63,6 @@ pub mod solver;
 pub use error::{BuildError, ImportError, MeshError, SceneError};
 pub use glam;
 pub use solver::{
-    ColorScope, RigidMomentum, Solver, SolverMethod, SolverParts, SolverSettings, StepTimings,
-    SweepSchedule,
+    ColorScope, LayerTimings, RigidMomentum, Solver, SolverMethod, SolverParts, SolverSettings,
+    StepTimings, SweepSchedule,
 };

@@ -319,3 +319,38 @@ fn a_skin_with_fewer_iterations_reads_the_muscle_in_later_blocks() {
         "the skin's second iteration read the first block's snapshot"
     );
 }
+
+/// The skin's own task is timed by phase ([`sinew_core::LayerTimings`]),
+/// inside the closest-data and project blocks it runs in, on 1 and 2
+/// threads; with the timers off, or without a skin, nothing is.
+#[test]
+fn a_skins_own_task_is_timed_by_phase_inside_its_blocks() {
+    for threads in [1, 2] {
+        let mut solver = oval_with_skin().instantiate(Path::new(".")).unwrap();
+        solver.settings.threads = threads;
+        solver.settings.parallel_threshold = 0;
+        solver.step();
+        let t = *solver.timings();
+        let phases = t.layers.as_array();
+        assert!(
+            phases.iter().all(|d| !d.is_zero()),
+            "{threads}: {:?}",
+            t.layers
+        );
+        assert!(
+            t.layers.total() <= t.closest_data + t.project,
+            "{threads}: {:?} past the blocks {:?}",
+            t.layers,
+            t.closest_data + t.project
+        );
+        solver.settings.timers = false;
+        solver.step();
+        assert!(solver.timings().layers.total().is_zero(), "timers off");
+    }
+    let mut oval = common::oval_with_skin(14, 12);
+    oval.muscles.truncate(1);
+    let mut solver = oval.instantiate(Path::new(".")).unwrap();
+    solver.step();
+    assert!(solver.timings().layers.total().is_zero(), "no skin");
+    assert!(!solver.timings().project.is_zero());
+}

@@ -51,7 +51,7 @@ pub use settings::{
     ColorScope, MAX_DT, MAX_GRAVITY, MAX_ITERATIONS, MAX_SUBSTEPS, MAX_THREADS, SolverMethod,
     SolverSettings, SweepSchedule,
 };
-pub use timings::{StepTimings, Stopwatch, TaskSplit};
+pub use timings::{LayerTimings, StepTimings, Stopwatch, TaskSplit};
 pub use workspace::MuscleWorkspace;
 
 use crate::animation::{Curve, TransformTrack};

@@ -163,6 +163,7 @@ pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
         let [closest, project] = split.shares();
         let slots = [&mut timings.closest_data, &mut timings.project];
         clock.lap_split(slots, [closest, project], split.reads());
+        timings.layers += split.layers();
         return;
     };
     let end = it.block_end();

@@ -92,7 +92,8 @@ pub fn publish_at(target: &mut TargetSurface, m: &Muscle, first_of_frame: bool) 
 /// snapshot for the next block ([`IterationParams::stages_for`]). The
 /// iterations `m` does not run ([`IterationParams::runs`]: past its own
 /// count, or between a surface layer's spread ones) it sits out. `timer`
-/// splits the task's time between closest data and projection.
+/// splits the task's time between closest data and projection, and takes
+/// a surface layer's phases ([`super::timings::LayerTimings`]).
 pub fn iterate<T: TargetSet + Sync + ?Sized>(
     m: &mut Muscle,
     ws: &mut MuscleWorkspace,
@@ -105,15 +106,20 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
         if !p.runs(m) {
             continue;
         }
+        let layer = m.params.is_surface_layer();
         let start = timer.start();
         closest_data(m, ws, targets, p.closest());
         let middle = timer.lap(start, 0);
         sweep(m, ws, &p);
+        let swept = if layer { timer.mark() } else { None };
         finish(m, ws, targets, &p);
         if p.stages_for(m, end) {
             stage_snapshot(m, ws, targets, &p);
         }
-        timer.lap(middle, 1);
+        let done = timer.lap(middle, 1);
+        if layer {
+            timer.add_layer([start, middle, swept, done]);
+        }
     }
 }
 

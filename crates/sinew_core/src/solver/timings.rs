@@ -26,6 +26,49 @@ pub struct StepTimings {
     /// ([`super::SweepSchedule::ByColor`], or chosen by `Auto`) instead of
     /// muscle by muscle.
     pub sweeps_by_color: u32,
+    /// The surface layers' (a skin's) own tasks inside closest data and
+    /// project, by phase.
+    pub layers: LayerTimings,
+}
+
+/// Wall time of the surface layers' (a skin's: see
+/// [`crate::muscle::MuscleParams::is_surface_layer`]) own tasks in the
+/// closest-data and project blocks, by phase, summed over the layers and
+/// their iterations. A layer's task runs its iterations one after another
+/// (its phases fork onto the threads inside), so where it is as long as
+/// the two blocks together the layer is what the frame waits for: the
+/// figure a many-core run needs to tell (README "On 16 cores"). Taken when
+/// a sweep runs muscle by muscle (not across muscles colour by colour:
+/// then zero), with the timers on.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LayerTimings {
+    /// Closest data: the Sliding constraints' closest points.
+    pub closest_data: Duration,
+    /// The colour sweep over its distance, Area, Bind and Sliding constraints.
+    pub sweep: Duration,
+    /// The end of each iteration: bone contacts, and the snapshot staged
+    /// for the muscles that slide on it.
+    pub finish: Duration,
+}
+
+impl LayerTimings {
+    /// The three phases in order (closest data, sweep, finish).
+    pub fn as_array(&self) -> [Duration; 3] {
+        [self.closest_data, self.sweep, self.finish]
+    }
+
+    /// The layers' tasks in all.
+    pub fn total(&self) -> Duration {
+        self.as_array().iter().sum()
+    }
+}
+
+impl std::ops::AddAssign for LayerTimings {
+    fn add_assign(&mut self, other: Self) {
+        self.closest_data += other.closest_data;
+        self.sweep += other.sweep;
+        self.finish += other.finish;
+    }
 }
 
 impl StepTimings {
@@ -130,6 +173,8 @@ impl Stopwatch {
 pub struct TaskSplit {
     enabled: bool,
     nanos: [AtomicU64; 2],
+    /// The surface layers' tasks by phase ([`LayerTimings`]).
+    layer_nanos: [AtomicU64; 3],
     reads: AtomicU32,
 }
 
@@ -139,6 +184,7 @@ impl TaskSplit {
         Self {
             enabled,
             nanos: [AtomicU64::new(0), AtomicU64::new(0)],
+            layer_nanos: [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)],
             reads: AtomicU32::new(0),
         }
     }
@@ -163,6 +209,36 @@ impl TaskSplit {
             self.reads.fetch_add(1, Ordering::Relaxed);
             now
         })
+    }
+
+    /// Reads the clock between a task's two parts (`None` when off).
+    #[inline]
+    pub fn mark(&self) -> Option<Instant> {
+        self.start()
+    }
+
+    /// Adds a surface layer's phases to [`TaskSplit::layers`]: closest
+    /// data from `start` to `middle`, the sweep from `middle` to `swept`,
+    /// the finish from `swept` to `end` (instants of the same task).
+    pub fn add_layer(&self, [start, middle, swept, end]: [Option<Instant>; 4]) {
+        if let (Some(a), Some(b), Some(c), Some(d)) = (start, middle, swept, end) {
+            for (slot, (from, to)) in self.layer_nanos.iter().zip([(a, b), (b, c), (c, d)]) {
+                slot.fetch_add((to - from).as_nanos() as u64, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// The surface layers' phases, over every task.
+    pub fn layers(&self) -> LayerTimings {
+        let [closest_data, sweep, finish] = self
+            .layer_nanos
+            .each_ref()
+            .map(|n| Duration::from_nanos(n.load(Ordering::Relaxed)));
+        LayerTimings {
+            closest_data,
+            sweep,
+            finish,
+        }
     }
 
     /// The time spent in each part, over every task.
