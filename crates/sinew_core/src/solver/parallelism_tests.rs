@@ -46,3 +46,33 @@ fn held_lines_weigh_in_the_particle_split() {
     let alone = Parallelism::decide(&settings, false, muscles);
     assert_eq!(alone, Parallelism::default());
 }
+
+/// A frame's first and last passes each run two phases in one task
+/// (`passes::begin_frame_all`, `passes::end_frame_all`): on 1 and 2
+/// threads every block they hold still gets its share of the time (T5,
+/// its 17 muscles in parallel on 2), and the per-block timers add up to no
+/// more than the step took.
+#[test]
+fn fused_passes_keep_every_block_timed() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/t5.ron");
+    let scene = Scene::load(&path).unwrap();
+    for threads in [1, 2] {
+        let mut solver = scene.instantiate(path.parent().unwrap()).unwrap();
+        solver.settings.threads = threads;
+        solver.settings.iterations = 2;
+        for _ in 0..3 {
+            let start = std::time::Instant::now();
+            solver.step();
+            let took = start.elapsed();
+            let t = *solver.timings();
+            for (name, block) in super::StepTimings::NAMES.iter().zip(t.as_array()) {
+                assert!(!block.is_zero(), "{threads} threads: {name} untimed");
+            }
+            assert!(
+                t.total() <= took,
+                "{threads} threads: {:?} > {took:?}",
+                t.total()
+            );
+        }
+    }
+}

@@ -5,7 +5,7 @@ use super::Solver;
 use super::params::{FrameParams, IterationParams, Parallelism, SubstepParams};
 use super::passes;
 use super::pipeline;
-use super::timings::{StepTimings, Stopwatch};
+use super::timings::{StepTimings, Stopwatch, TaskSplit};
 use crate::animation::interpolate_rigid;
 use crate::closest::TargetSource;
 use crate::muscle::Muscle;
@@ -38,8 +38,12 @@ impl Solver {
             let sub = frame.substep(s);
             self.pose_bones(&sub);
             clock.lap(&mut timings.update_targets);
-            self.begin_substep(&sub);
-            clock.lap(&mut timings.integrate);
+            if s == 0 {
+                self.begin_frame(&sub, &mut clock, &mut timings);
+            } else {
+                self.begin_substep(&sub);
+                clock.lap(&mut timings.integrate);
+            }
             // In blocks of `snapshot_interval` iterations, each against the
             // snapshots published at its start.
             for block in sub.blocks(iterations) {
@@ -47,34 +51,42 @@ impl Solver {
                 clock.lap(&mut timings.update_targets);
                 self.iterate(&block, &mut clock, &mut timings);
             }
-            self.end_substep(&sub);
-            clock.lap(&mut timings.apply);
+            if s + 1 == frame.substeps {
+                self.end_frame(&sub, &mut clock, &mut timings);
+            } else {
+                self.end_substep(&sub);
+                clock.lap(&mut timings.apply);
+            }
         }
         self.time += frame.dt;
         self.frame += 1;
-        self.guard_muscles(frame);
-        clock.lap(&mut timings.write_back);
         timings.clock_reads = clock.reads();
         self.timings = timings;
     }
 
-    /// The run-time guard over every muscle ([`passes::guard_all`]): a
-    /// muscle that blew up is put back to its last good frame and reported.
-    fn guard_muscles(&mut self, frame: &FrameParams) {
+    /// The last substep's end and the run-time guard over every muscle in
+    /// one pass ([`passes::end_frame_all`]), its time split between the
+    /// apply and write-back blocks: a muscle that blew up is put back to
+    /// its last good frame and reported.
+    fn end_frame(&mut self, sub: &SubstepParams, clock: &mut Stopwatch, t: &mut StepTimings) {
         let unit = self.valid.length_unit;
         let max_speed = self.valid.max_speed * unit;
         let first_new = self.faults.len();
+        let split = TaskSplit::new(clock.is_running());
         let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
         self.pairs.with(pairs, |muscles| {
-            passes::guard_all(
+            passes::end_frame_all(
                 &self.pool,
                 muscles,
-                frame,
+                sub,
                 max_speed,
                 unit,
                 &mut self.faults,
+                &split,
             );
         });
+        let slots = [&mut t.apply, &mut t.write_back];
+        clock.lap_split(slots, split.shares(), split.reads());
         for fault in &self.faults[first_new..] {
             if fault.count == 1 {
                 self.warnings.push(fault.to_string());
@@ -109,7 +121,8 @@ impl Solver {
     }
 
     /// Bone poses at the frame's end (skeleton, tracks) and activations
-    /// (curves, then sensors → triggers → layers) → rest lengths.
+    /// (curves, then sensors → triggers → layers); the rest lengths follow
+    /// them in the first substep's start ([`Solver::begin_frame`]).
     fn read_inputs(&mut self, frame: &FrameParams) {
         let end_time = self.time + frame.dt;
         if let Some(sk) = &mut self.skeleton {
@@ -140,13 +153,6 @@ impl Solver {
                 }
             });
         }
-        let warnings = Mutex::new(&mut self.warnings);
-        let warn = |w| warnings.lock().expect("not poisoned").push(w);
-        let always = self.valid.parallel_threshold == 0;
-        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
-        self.pairs.with(pairs, |muscles| {
-            passes::update_activations(&self.pool, muscles, always, warn);
-        });
     }
 
     /// Every bone at the substep's end time: skeleton bones from the
@@ -171,6 +177,26 @@ impl Solver {
                 self.targets[t].set_transform(*pose);
             }
         }
+    }
+
+    /// Every muscle's rest lengths from its activation, then the first
+    /// substep's start ([`Solver::begin_substep`]), in one pass
+    /// ([`passes::begin_frame_all`]), its time split between the
+    /// read-inputs and integrate blocks.
+    fn begin_frame(&mut self, sub: &SubstepParams, clock: &mut Stopwatch, t: &mut StepTimings) {
+        let poses = &self.substep_poses;
+        let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
+        let goals = |m: &mut Muscle| pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
+        let warnings = Mutex::new(&mut self.warnings);
+        let warn = |w| warnings.lock().expect("not poisoned").push(w);
+        let always = self.valid.parallel_threshold == 0;
+        let split = TaskSplit::new(clock.is_running());
+        let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
+        self.pairs.with(pairs, |muscles| {
+            passes::begin_frame_all(&self.pool, muscles, sub, always, warn, goals, &split);
+        });
+        let slots = [&mut t.read_inputs, &mut t.integrate];
+        clock.lap_split(slots, split.shares(), split.reads());
     }
 
     /// Attachment goals, integration, pins, λ = 0 for every muscle, each
