@@ -277,6 +277,17 @@ impl SinewTimings {
         StepTimings::NAMES.into_iter().zip(self.step.as_array())
     }
 
+    /// The surface layers' (a skin's) own tasks in the last step, by phase
+    /// ([`sinew_core::LayerTimings`]), and their share of the closest-data
+    /// and project blocks they run in: near 1, the skin is what the frame
+    /// waits for. `None` without a surface layer (or with the timers off).
+    pub fn layers(&self) -> Option<(sinew_core::LayerTimings, f32)> {
+        let layers = self.step.layers;
+        let blocks = self.step.closest_data + self.step.project;
+        (!layers.total().is_zero() && !blocks.is_zero())
+            .then(|| (layers, layers.total().as_secs_f32() / blocks.as_secs_f32()))
+    }
+
     /// The median of the steps' totals over [`SinewTimings::history`], in
     /// ms (`None` before the first step): the steady figure the panel shows
     /// beside the last step, which one slow step (a link, an OS hitch)
@@ -355,6 +366,23 @@ mod tests {
         assert_eq!(t.median_total_ms(), Some(2.5));
         t.history.pop_back();
         assert_eq!(t.median_total_ms(), Some(3.0));
+    }
+
+    /// The skin's own task's share is of closest data and project
+    /// together; nothing without one.
+    #[test]
+    fn a_skins_share_is_of_the_blocks_it_runs_in() {
+        let mut t = SinewTimings::default();
+        assert_eq!(t.layers(), None);
+        t.step.closest_data = Duration::from_millis(3);
+        t.step.project = Duration::from_millis(5);
+        assert_eq!(t.layers(), None, "no skin");
+        t.step.layers.closest_data = Duration::from_millis(2);
+        t.step.layers.sweep = Duration::from_millis(3);
+        t.step.layers.finish = Duration::from_millis(1);
+        let (layers, share) = t.layers().unwrap();
+        assert_eq!(layers.total(), Duration::from_millis(6));
+        assert!((share - 0.75).abs() < 1e-6, "{share}");
     }
 
     #[test]

@@ -257,6 +257,20 @@ fn chart(ui: &mut egui::Ui, timings: &SinewTimings) {
             ui.label(format!("{name:<15} {:7.3} ms", d.as_secs_f64() * 1e3));
         });
     }
+    if let Some((layers, share)) = timings.layers() {
+        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+        ui.label(format!(
+            "skin's own task {:7.3} ms, {:.0} % of closest data + project",
+            ms(layers.total()),
+            100.0 * share
+        ))
+        .on_hover_text(format!(
+            "closest data {:.3} ms, sweep {:.3} ms, bone contacts {:.3} ms: near 100 %, the skin is what the frame waits for",
+            ms(layers.closest_data),
+            ms(layers.sweep),
+            ms(layers.finish)
+        ));
+    }
     let (rect, _) =
         ui.allocate_exact_size(egui::vec2(ui.available_width(), 90.0), egui::Sense::hover());
     let painter = ui.painter_at(rect);
