@@ -113,8 +113,8 @@ pub fn end_substep_all(pool: &WorkerPool, muscles: &mut [MusclePair], sub: &Subs
 /// A frame's end for every muscle in one pass: each muscle's last substep
 /// ended ([`pipeline::end_substep`]) and then its run-time [`guard`] (a
 /// muscle that blew up put back to its last good frame) in one task —
-/// the muscle still in that thread's cache, and one fork and join where
-/// two passes took two (about 30 µs a pass on 16 threads). The Bevy
+/// the muscle still in that thread's cache, and one fork and join instead
+/// of two (about 30 µs a pass on 16 threads). The Bevy
 /// driver runs the two as systems of their own, the same bits and faults:
 /// each muscle's check reads only its own state. On the pool when the
 /// step's particle passes are parallel (the guard reads and copies every
