@@ -44,12 +44,18 @@ pub fn update_activations(
     always: bool,
     warn: impl Fn(String) + Sync + Send,
 ) {
-    let pool = pool.when(always || muscles.len() > PARALLEL_MUSCLES);
+    let pool = pool.when(activations_split(always, muscles));
     for_each_muscle(pool, muscles, |m, _| {
         if let Some(w) = m.update_activation() {
             warn(w);
         }
     });
+}
+
+/// Whether the activations of `muscles` are updated on the pool: many
+/// muscles, or `always`.
+fn activations_split(always: bool, muscles: &[MusclePair]) -> bool {
+    always || muscles.len() > PARALLEL_MUSCLES
 }
 
 /// [`pipeline::begin_substep`] for every muscle (on the pool when the
@@ -90,8 +96,7 @@ pub fn begin_frame_all(
     goals: impl Fn(&mut Muscle) + Sync + Send,
     split: &TaskSplit,
 ) {
-    let many = always || muscles.len() > PARALLEL_MUSCLES;
-    let pool = pool.when(sub.frame.parallelism.particles || many);
+    let pool = pool.when(sub.frame.parallelism.particles || activations_split(always, muscles));
     for_each_muscle(pool, muscles, |m, ws| {
         let start = split.start();
         if let Some(w) = m.update_activation() {

@@ -111,7 +111,7 @@ pub fn iterate<T: TargetSet + Sync + ?Sized>(
         closest_data(m, ws, targets, p.closest());
         let middle = timer.lap(start, 0);
         sweep(m, ws, &p);
-        let swept = if layer { timer.mark() } else { None };
+        let swept = if layer { timer.start() } else { None };
         finish(m, ws, targets, &p);
         if p.stages_for(m, end) {
             stage_snapshot(m, ws, targets, &p);

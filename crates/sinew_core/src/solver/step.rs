@@ -184,9 +184,7 @@ impl Solver {
     /// ([`passes::begin_frame_all`]), its time split between the
     /// read-inputs and integrate blocks.
     fn begin_frame(&mut self, sub: &SubstepParams, clock: &mut Stopwatch, t: &mut StepTimings) {
-        let poses = &self.substep_poses;
-        let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
-        let goals = |m: &mut Muscle| pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
+        let goals = attachment_goals(&self.substep_poses);
         let warnings = Mutex::new(&mut self.warnings);
         let warn = |w| warnings.lock().expect("not poisoned").push(w);
         let always = self.valid.parallel_threshold == 0;
@@ -202,9 +200,7 @@ impl Solver {
     /// Attachment goals, integration, pins, λ = 0 for every muscle, each
     /// muscle in one task.
     fn begin_substep(&mut self, sub: &SubstepParams) {
-        let poses = &self.substep_poses;
-        let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
-        let goals = |m: &mut Muscle| pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
+        let goals = attachment_goals(&self.substep_poses);
         let pairs = self.muscles.iter_mut().zip(&mut self.workspaces);
         self.pairs.with(pairs, |muscles| {
             passes::begin_substep_all(&self.pool, muscles, sub, goals);
@@ -261,5 +257,15 @@ impl Solver {
         self.pairs.with(pairs, |muscles| {
             passes::iterate_all(&self.pool, muscles, targets, it, clock, t);
         });
+    }
+}
+
+/// Moves a muscle's attachment and Bind goals to the bones' substep poses
+/// `poses` (a bone's index into them; no bone: the world), in the muscle's
+/// own task ([`pipeline::update_attachment_goals`]).
+fn attachment_goals(poses: &[Affine3A]) -> impl Fn(&mut Muscle) + Sync + Send + '_ {
+    move |m| {
+        let pose = |b: Option<usize>| b.map_or(Affine3A::IDENTITY, |b| poses[b]);
+        pipeline::update_attachment_goals(m, &pose, &|b| poses[b]);
     }
 }

@@ -189,7 +189,8 @@ impl TaskSplit {
         }
     }
 
-    /// The start of a task's first part (`None` when off).
+    /// The start of a task's first part, or any other instant a task
+    /// reads for [`TaskSplit::add_layer`] (`None` when off).
     #[inline]
     pub fn start(&self) -> Option<Instant> {
         self.enabled.then(|| {
@@ -209,12 +210,6 @@ impl TaskSplit {
             self.reads.fetch_add(1, Ordering::Relaxed);
             now
         })
-    }
-
-    /// Reads the clock between a task's two parts (`None` when off).
-    #[inline]
-    pub fn mark(&self) -> Option<Instant> {
-        self.start()
     }
 
     /// Adds a surface layer's phases to [`TaskSplit::layers`]: closest
