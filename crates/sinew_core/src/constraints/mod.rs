@@ -36,6 +36,7 @@ mod point;
 mod runs;
 mod sliding;
 mod volume;
+mod volume_terms;
 
 pub use area::{AreaBatch, AreaMode};
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};

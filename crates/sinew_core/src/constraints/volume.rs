@@ -20,7 +20,8 @@
 //! activation (1.2 = +20 %). Sums run in f64. Compliance units: m³/N.
 
 use super::delta_lambda;
-use glam::{Vec3, Vec3A};
+use super::volume_terms::{gradient_part, polygon_part, scatter_rotated};
+use glam::{Vec3, Vec3A, Vec3Swizzles};
 use serde::{Deserialize, Serialize};
 
 /// Volume parameters of a muscle.
@@ -111,82 +112,6 @@ fn map_blocks<T: Send, R: Send>(
     }
 }
 
-/// A polygon's part of `6V` and the terms its vertices' gradients share:
-/// `(A·m, m, A/K)` with `A = Σ p_k × p_k+1` and `m` the centroid (a
-/// triangle needs neither term: see [`gradient_part`]).
-#[inline(always)]
-fn polygon_part(poly: &[u32], r: &[Vec3A]) -> (f32, Vec3A, Vec3A) {
-    match *poly {
-        [a, b, c] => {
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            (r[a].dot(r[b].cross(r[c])), Vec3A::ZERO, Vec3A::ZERO)
-        }
-        [a, b, c, d] => {
-            let (pa, pb, pc, pd) = (r[a as usize], r[b as usize], r[c as usize], r[d as usize]);
-            let m = (pa + pb + pc + pd) * 0.25;
-            // Σ p_k × p_k+1 of a quad is (c − a) × (d − b).
-            let area = (pc - pa).cross(pd - pb);
-            (area.dot(m), m, area * 0.25)
-        }
-        _ => {
-            let k = poly.len();
-            let at = |j: usize| r[poly[j % k] as usize];
-            let m = poly.iter().map(|&i| r[i as usize]).sum::<Vec3A>() / k as f32;
-            let area = (0..k).map(|j| at(j).cross(at(j + 1))).sum::<Vec3A>();
-            (area.dot(m), m, area / k as f32)
-        }
-    }
-}
-
-/// `6 ∂V/∂p` of the vertex in slot `j` of `poly` (before the sum over
-/// polygons): `p_j+1 × p_j+2` for a triangle, `m × (p_j−1 − p_j+1) + A/K`
-/// otherwise, with `(m, share)` from [`polygon_part`].
-#[inline(always)]
-fn gradient_part(poly: &[u32], j: usize, r: &[Vec3A], m: Vec3A, share: Vec3A) -> Vec3A {
-    let k = poly.len();
-    // Slots j − 1 and j + 1, without a division for the usual sizes.
-    let (prev, next) = match k {
-        3 => ([2, 0, 1][j], [1, 2, 0][j]),
-        4 => ((j + 3) & 3, (j + 1) & 3),
-        _ => ((j + k - 1) % k, (j + 1) % k),
-    };
-    let at = |slot: usize| r[poly[slot] as usize];
-    if k == 3 {
-        // p_j+1 × p_j+2, and j + 2 is j − 1.
-        at(next).cross(at(prev))
-    } else {
-        m.cross(at(prev) - at(next)) + share
-    }
-}
-
-/// Adds every vertex's [`gradient_part`] of `poly` to `g`, with the
-/// polygon's size known to the compiler for triangles and quads.
-#[inline(always)]
-fn scatter_polygon(poly: &[u32], r: &[Vec3A], m: Vec3A, share: Vec3A, g: &mut [Vec3A]) {
-    let mut add = |poly: &[u32]| {
-        for (j, &v) in poly.iter().enumerate() {
-            g[v as usize] += gradient_part(poly, j, r, m, share);
-        }
-    };
-    match *poly {
-        [_, _, _] => add(&poly[..3]),
-        [a, b, c, d] => {
-            // A quad's opposite corners take opposite cross products:
-            // m × (p_d − p_b) is −(m × (p_b − p_d)) to the bit (IEEE
-            // rounding is symmetric, and a zero's sign is lost in the sum
-            // from +0), so two cross products serve its four corners.
-            let (a, b, c, d) = (a as usize, b as usize, c as usize, d as usize);
-            let across_bd = m.cross(r[b] - r[d]);
-            let across_ca = m.cross(r[c] - r[a]);
-            g[a] += -across_bd + share;
-            g[b] += -across_ca + share;
-            g[c] += across_bd + share;
-            g[d] += across_ca + share;
-        }
-        _ => add(poly),
-    }
-}
-
 /// How far one projection of the Volume constraint goes. Volume is cubic
 /// in the positions, so one linearised step leaves a residual quadratic in
 /// the violation: about 1e-4 of the volume after a 1 % violation.
@@ -264,16 +189,12 @@ impl VolumeConstraint {
         let n = self.surface_count;
         let (r, g) = (&self.relative[..n], &mut self.gradient[..n]);
         let (offsets, indices) = (&self.polygon_offsets[..], &self.polygon_indices[..]);
-        let mut six_v = 0.0f64;
-        for o in offsets.windows(2) {
-            let poly = &indices[o[0] as usize..o[1] as usize];
-            let (six, m, share) = polygon_part(poly, r);
-            six_v += six as f64;
-            scatter_polygon(poly, r, m, share, g);
-        }
+        // The sum keeps the gradient's lanes rotated to (y, z, x), which
+        // saves most of its shuffles; each is put back in order here.
+        let six_v = scatter_rotated(offsets, indices, r, g);
         let mut wg = 0.0f64;
         for (g, &wi) in self.gradient.iter_mut().zip(w) {
-            *g /= 6.0;
+            *g = g.zxy() / 6.0;
             wg += (wi * g.length_squared()) as f64;
         }
         (six_v / 6.0 - self.ratio as f64 * self.rest_volume, wg)
@@ -485,15 +406,9 @@ mod tests {
         // polygon order (what smaller meshes do).
         let r = &v.relative;
         let mut g = vec![Vec3A::ZERO; v.surface_count];
-        let mut six_v = 0.0f64;
-        for o in v.polygon_offsets.windows(2) {
-            let poly = &v.polygon_indices[o[0] as usize..o[1] as usize];
-            let (six, m, share) = polygon_part(poly, r);
-            six_v += six as f64;
-            scatter_polygon(poly, r, m, share, &mut g);
-        }
+        let six_v = scatter_rotated(&v.polygon_offsets, &v.polygon_indices, r, &mut g);
         for (i, (a, b)) in v.gradient.iter().zip(&g).enumerate() {
-            assert_eq!(*a, *b / 6.0, "vertex {i}");
+            assert_eq!(*a, b.zxy() / 6.0, "vertex {i}");
         }
         let c_ref = six_v / 6.0 - v.ratio as f64 * v.rest_volume;
         assert!((c - c_ref).abs() <= 1e-12 * v.rest_volume, "{c} {c_ref}");
