@@ -51,6 +51,7 @@ pub mod constraints;
 pub mod error;
 mod glb_container;
 pub mod import;
+mod lanes;
 pub mod mesh;
 pub mod muscle;
 mod prefetch;

@@ -8,7 +8,7 @@
 //! data is evicted by the others' between its iterations, and each link
 //! waited for the one before. Asking for the next vertices' lines while
 //! one is worked on overlaps those waits (`solver::sliding_closest`). This
-//! module and `solver::sweep` are the crate's only `unsafe`.
+//! module, `lanes` and `solver::sweep` are the crate's only `unsafe`.
 #![expect(
     unsafe_code,
     reason = "the prefetch intrinsic takes a raw pointer; a prefetch reads nothing into the program and never faults"

@@ -31,21 +31,25 @@
 
 mod area;
 mod distance;
+mod distance_lanes;
 mod ids;
 mod point;
 mod runs;
 mod sliding;
 mod volume;
+mod volume_lanes;
 mod volume_terms;
 
 pub use area::{AreaBatch, AreaMode};
 pub use distance::{ActivationRest, ActivationScale, DistanceBatch, FiberMode};
+pub use distance_lanes::{DistanceLanes, LANES};
 pub use ids::{ParticleId, TargetId, TargetSlot};
 pub use point::PointBatch;
 pub use runs::{OPEN_RUNS, RUN};
 pub(crate) use sliding::outside_at_rest;
 pub use sliding::{SlidingBatch, SlidingContact, SlidingMode};
 pub use volume::{VolumeConstraint, VolumeParams, VolumeProjection};
+pub use volume_lanes::{VolumeLanes, volumes_share_topology};
 
 use glam::Vec3;
 

@@ -25,6 +25,7 @@ pub mod coloring;
 mod constraint_ref;
 mod guard;
 pub mod jacobi;
+mod lane_groups;
 mod link;
 mod momentum;
 mod muscle_ranges;

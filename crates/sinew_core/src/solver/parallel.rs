@@ -179,7 +179,7 @@ pub fn for_each_muscle(
 /// The index of the muscle with the most particles, when it holds more than
 /// a quarter of a thread's share of them all on `threads` threads (and
 /// there are others to run beside it).
-fn dominant(muscles: &[MusclePair], threads: usize) -> Option<usize> {
+pub(super) fn dominant(muscles: &[MusclePair], threads: usize) -> Option<usize> {
     let sizes = muscles.iter().map(|(m, _)| m.x.len());
     let (total, (largest, size)) = sizes
         .enumerate()

@@ -21,6 +21,7 @@
 
 use super::coloring::PlanKind;
 use super::guard::{Fault, guard};
+use super::lane_groups;
 use super::muscle_ranges::for_each_item_in_ranges;
 use super::parallel::{MusclePair, WorkerPool, for_each_muscle, sweeps_by_color_pay};
 use super::params::{IterationParams, SubstepParams};
@@ -215,9 +216,7 @@ pub fn iterate_all<T: TargetSet + Sync + ?Sized>(
         && sweeps_by_color_pay(frame, muscles);
     let Some(pool) = pool.filter(|_| by_color) else {
         let split = TaskSplit::new(clock.is_running());
-        for_each_muscle(pool, muscles, |m, ws| {
-            pipeline::iterate(m, ws, targets, it, &split);
-        });
+        lane_groups::iterate_by_muscle(pool, muscles, targets, it, &split);
         let [closest, project] = split.shares();
         let slots = [&mut timings.closest_data, &mut timings.project];
         clock.lap_split(slots, [closest, project], split.reads());

@@ -352,7 +352,7 @@ fn integrate(m: &mut Muscle, gravity: Vec3, h: f32) {
 }
 
 /// `order` without a trailing Volume, and whether it had one.
-fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
+pub(super) fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
     match order.split_last() {
         Some((ConstraintKind::Volume, rest)) => (rest, true),
         _ => (order, false),
@@ -362,7 +362,7 @@ fn split_volume(order: &[ConstraintKind]) -> (&[ConstraintKind], bool) {
 /// Projects the Volume constraint of `m`, if it has one, as far as
 /// iteration `p` asks (a large mesh's evaluation as a parallel reduction
 /// when `split`, same result).
-fn project_volume(m: &mut Muscle, p: &IterationParams, inv_h2: f32, split: bool) {
+pub(super) fn project_volume(m: &mut Muscle, p: &IterationParams, inv_h2: f32, split: bool) {
     let how = p.volume_projection(m);
     if let Some(v) = &mut m.constraints.volume {
         v.solve_with(&mut m.p, &m.w, inv_h2, split, how);

@@ -1,0 +1,338 @@
+//! Muscles of one topology in groups of [`LANES`], their distance
+//! constraints projected side by side ([`DistanceLanes`](crate::constraints::DistanceLanes)): the plain
+//! Gauss–Seidel pass (`Sequential`) over muscles, with the same bits.
+//!
+//! A group is [`LANES`] neighbours in the driver's list whose distance
+//! batches have the same index arrays (muscles swept from one recipe: all
+//! of T7's, all but one of T5's), that run the same iterations as plain
+//! Gauss–Seidel, and that are not surface layers. One task runs a group's
+//! block of iterations: in each iteration every member's closest data,
+//! its constraints before the distance batches, the four members'
+//! distance batches in lanes, then each member's constraints after them,
+//! its finish (bone contacts, a trailing Volume) and its staged snapshot.
+//! The members read one another only through the snapshots published
+//! before the block, so running their phases interleaved gives each the
+//! bits its own task gives. A group whose members turn out not to share
+//! their index arrays (a host retied one by hand) runs member by member.
+//!
+//! The groups are shared out over the threads in ranges as muscles are
+//! (`super::muscle_ranges`); the muscles past the last whole group run
+//! in the last group's task. With fewer groups than threads, or a muscle
+//! large enough to start first ([`super::parallel::for_each_muscle`]),
+//! the pass runs muscle by muscle.
+
+use super::bone_contacts::bone_contacts;
+use super::muscle_ranges::for_each_item_in_ranges;
+use super::parallel::{MusclePair, dominant, for_each_muscle};
+use super::params::IterationParams;
+use super::pipeline::{self, gauss_seidel_over, split_volume};
+use super::settings::SolverMethod;
+use super::timings::TaskSplit;
+use crate::closest::TargetSet;
+use crate::constraints::{DistanceBatch, LANES, volumes_share_topology};
+use crate::muscle::{ConstraintKind, Muscle};
+use std::sync::{Mutex, PoisonError};
+
+/// Groups a thread must have at least, for the pass to run by groups: a
+/// group is four muscles' work, taken whole, and the muscles' costs differ
+/// (their contacts). P4's 17 muscles on two threads, four groups, ran
+/// ×1.018 slower by groups (six alternating pairs); T7's 144, 36 groups,
+/// ×0.91 faster (five pairs).
+const GROUPS_PER_THREAD: usize = 4;
+
+/// Whether `kind` is projected by a [`DistanceBatch`].
+fn is_distance(kind: ConstraintKind) -> bool {
+    matches!(
+        kind,
+        ConstraintKind::Fiber | ConstraintKind::Branch | ConstraintKind::Internal
+    )
+}
+
+/// The order split around its first run of distance kinds: `(before, the
+/// run, after)`; `None` without one.
+fn around_distance_run(
+    order: &[ConstraintKind],
+) -> Option<(&[ConstraintKind], &[ConstraintKind], &[ConstraintKind])> {
+    let start = order.iter().position(|&k| is_distance(k))?;
+    let len = order[start..]
+        .iter()
+        .take_while(|&&k| is_distance(k))
+        .count();
+    let (before, rest) = order.split_at(start);
+    let (run, after) = rest.split_at(len);
+    // Each kind once: a batch projected twice keeps one multiplier array.
+    let distinct = run.iter().enumerate().all(|(i, k)| !run[..i].contains(k));
+    distinct.then_some((before, run, after))
+}
+
+/// `m`'s distance batches of the kinds in `run`, in that order.
+fn distance_batches<'m>(m: &'m Muscle, run: &[ConstraintKind]) -> [&'m DistanceBatch; 3] {
+    let c = &m.constraints;
+    let of = |k: usize| match run.get(k) {
+        Some(ConstraintKind::Branch) => &c.branch,
+        Some(ConstraintKind::Internal) => &c.internal,
+        _ => &c.fiber,
+    };
+    [of(0), of(1), of(2)]
+}
+
+/// Whether `m` can be a group member under `it`: plain Gauss–Seidel, not
+/// a surface layer.
+fn member_fits(m: &Muscle, it: &IterationParams) -> bool {
+    let f = &it.substep.frame;
+    !m.params.is_surface_layer() && pipeline::plan_kind_of(m, f.method).is_none()
+}
+
+/// Whether the members of `group` run together: each fits, runs the
+/// iterations the first runs, and has the first's particles and distance
+/// index arrays for the kinds of `run`.
+fn runs_in_lanes(
+    group: &[MusclePair; LANES],
+    it: &IterationParams,
+    run: &[ConstraintKind],
+) -> bool {
+    let first = &*group[0].0;
+    let f = &it.substep.frame;
+    let iterations = f.iterations_of(first);
+    let same_arrays = |m: &Muscle| {
+        let (a, b) = (distance_batches(first, run), distance_batches(m, run));
+        a.iter().zip(&b).all(|(a, b)| a.a == b.a && a.b == b.b)
+    };
+    group.iter().all(|(m, _)| {
+        member_fits(m, it)
+            && f.iterations_of(m) == iterations
+            && m.p.len() == first.p.len()
+            && m.w.len() == first.w.len()
+            && same_arrays(m)
+    })
+}
+
+/// The block of iterations `it` starts, for a group of muscles with their
+/// distance batches in lanes (module docs); member by member where they
+/// do not share them.
+fn iterate_group<T: TargetSet + Sync + ?Sized>(
+    group: &mut [MusclePair; LANES],
+    targets: &T,
+    it: &IterationParams,
+    timer: &TaskSplit,
+) {
+    let f = &it.substep.frame;
+    let order = split_volume(f.order.as_slice()).0;
+    let split = around_distance_run(order);
+    let Some((before, run, after)) = split.filter(|(_, run, _)| runs_in_lanes(group, it, run))
+    else {
+        for (m, ws) in group.iter_mut() {
+            pipeline::iterate(m, ws, targets, it, timer);
+        }
+        return;
+    };
+    let inv_h2 = it.substep.inv_h2;
+    let split_muscles = f.parallelism.muscles;
+    let trailing = split_volume(f.order.as_slice()).1;
+    let mut lanes = std::mem::take(&mut group[0].1.lanes);
+    let volumes = group.each_ref().map(|(m, _)| m.constraints.volume.as_ref());
+    let mut volume_lanes = match volumes {
+        [Some(a), Some(b), Some(c), Some(d)] if volumes_share_topology([a, b, c, d]) => {
+            Some(std::mem::take(&mut group[0].1.volume_lanes))
+        }
+        _ => None,
+    };
+    {
+        let batches = group.each_ref().map(|(m, _)| distance_batches(m, run));
+        let slices = batches.each_ref().map(|b| &b[..run.len()]);
+        lanes.load_batches(group.each_ref().map(|(m, _)| m.w.as_slice()), slices);
+    }
+    let end = it.block_end();
+    for it in it.block() {
+        if !it.runs(&*group[0].0) {
+            continue;
+        }
+        let start = timer.start();
+        for (m, ws) in group.iter_mut() {
+            pipeline::closest_data(m, ws, targets, it.closest());
+        }
+        let middle = timer.lap(start, 0);
+        for (m, ws) in group.iter_mut() {
+            let volume = it.volume_projection(m);
+            gauss_seidel_over(m, before, inv_h2, Some(&ws.switched_on), volume);
+        }
+        lanes.load_positions(group.each_ref().map(|(m, _)| m.p.as_slice()));
+        lanes.solve(&distance_batches(group[0].0, run)[..run.len()], inv_h2);
+        let [a, b, c, d] = &mut *group;
+        lanes.store_positions([&mut a.0.p, &mut b.0.p, &mut c.0.p, &mut d.0.p]);
+        // Each member's constraints after the distance batches and its
+        // bone contacts, then the trailing Volumes, in lanes where their
+        // surfaces share one topology ([`pipeline::finish`] for plain
+        // Gauss–Seidel).
+        for (m, ws) in group.iter_mut() {
+            let volume = it.volume_projection(m);
+            gauss_seidel_over(m, after, inv_h2, Some(&ws.switched_on), volume);
+            if it.contacts_bones(m) {
+                bone_contacts(m, ws, targets, it.first_of_substep(), split_muscles);
+            }
+        }
+        if trailing {
+            match &mut volume_lanes {
+                Some(lanes) => {
+                    let how = group.each_ref().map(|(m, _)| it.volume_projection(m));
+                    let [a, b, c, d] = &mut *group;
+                    let [a, b, c, d] = [&mut *a.0, &mut *b.0, &mut *c.0, &mut *d.0];
+                    let volumes = [a, b, c, d].map(|m| {
+                        let c = &mut m.constraints;
+                        (c.volume.as_mut().expect("checked"), &mut m.p[..], &m.w[..])
+                    });
+                    let [va, vb, vc, vd] = volumes;
+                    lanes.solve(
+                        [va.0, vb.0, vc.0, vd.0],
+                        [va.1, vb.1, vc.1, vd.1],
+                        [va.2, vb.2, vc.2, vd.2],
+                        inv_h2,
+                        how,
+                    );
+                }
+                None => {
+                    for (m, _) in group.iter_mut() {
+                        pipeline::project_volume(m, &it, inv_h2, split_muscles);
+                    }
+                }
+            }
+        }
+        for (m, ws) in group.iter_mut() {
+            if it.stages_for(m, end) {
+                pipeline::stage_snapshot(m, ws, targets, &it);
+            }
+        }
+        timer.lap(middle, 1);
+    }
+    for (lane, (m, _)) in group.iter_mut().enumerate() {
+        let c = &mut m.constraints;
+        for (batch, kind) in run.iter().enumerate() {
+            let b = match kind {
+                ConstraintKind::Branch => &mut c.branch,
+                ConstraintKind::Internal => &mut c.internal,
+                _ => &mut c.fiber,
+            };
+            lanes.store_lambdas(lane, batch, &mut b.lambda);
+        }
+    }
+    group[0].1.lanes = lanes;
+    if let Some(lanes) = volume_lanes {
+        group[0].1.volume_lanes = lanes;
+    }
+}
+
+/// Closest data and projection of every muscle for the block of
+/// iterations `it` starts, one task per muscle or per group of muscles
+/// of one topology (module docs), on `pool` when given.
+pub(super) fn iterate_by_muscle<T: TargetSet + Sync + ?Sized>(
+    pool: Option<&rayon::ThreadPool>,
+    muscles: &mut [MusclePair],
+    targets: &T,
+    it: &IterationParams,
+    timer: &TaskSplit,
+) {
+    let threads = pool.map_or(1, |p| p.current_num_threads());
+    let order = it.substep.frame.order.as_slice();
+    let groups_pay = it.substep.frame.method == SolverMethod::Sequential
+        && around_distance_run(split_volume(order).0).is_some()
+        && muscles.len() / LANES >= GROUPS_PER_THREAD * threads.max(1)
+        && dominant(muscles, threads).is_none();
+    if !groups_pay {
+        for_each_muscle(pool, muscles, |m, ws| {
+            pipeline::iterate(m, ws, targets, it, timer)
+        });
+        return;
+    }
+    let (groups, rest) = muscles.as_chunks_mut::<LANES>();
+    let rest = Mutex::new(rest);
+    let last = groups.len().saturating_sub(1);
+    let run = |i: usize, group: &mut [MusclePair; LANES]| {
+        iterate_group(group, targets, it, timer);
+        if i == last {
+            let mut rest = rest.lock().unwrap_or_else(PoisonError::into_inner);
+            for (m, ws) in rest.iter_mut() {
+                pipeline::iterate(m, ws, targets, it, timer);
+            }
+        }
+    };
+    match pool {
+        Some(pool) => pool.install(|| for_each_item_in_ranges(groups, threads, &run)),
+        None => groups.iter_mut().enumerate().for_each(|(i, g)| run(i, g)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+
+    use crate::scene::builtin;
+    use crate::solver::Solver;
+    use glam::Vec3;
+
+    /// 21 copies of P1's oval (one topology) side by side, `threads`
+    /// workers, after `edit` has changed the built solver.
+    fn crowd(threads: u32, edit: impl FnOnce(&mut Solver)) -> Solver {
+        let mut scene = builtin("P1")
+            .unwrap()
+            .crowd(21, Vec3::X * 0.3, 0.1)
+            .unwrap();
+        scene.settings.gravity = Vec3::new(0.0, -9.81, 0.0);
+        scene.settings.threads = threads;
+        scene.settings.parallel_threshold = 0;
+        let mut s = scene.instantiate(std::path::Path::new(".")).unwrap();
+        edit(&mut s);
+        s
+    }
+
+    fn bits(s: &Solver) -> Vec<u32> {
+        (s.muscles().iter())
+            .flat_map(|m| m.x.iter().flat_map(|p| p.to_array().map(f32::to_bits)))
+            .collect()
+    }
+
+    /// Whether a muscle led a group in lanes (its lanes hold particles).
+    fn led_a_group(s: &Solver, m: usize) -> bool {
+        s.workspaces()[m].lanes.particles() > 0
+    }
+
+    /// On one thread the 21 muscles run in five groups, the one past them
+    /// in the last group's task; on two, muscle by muscle (five groups are
+    /// too few to share out). Both give the same bits, every ten frames
+    /// over sixty.
+    #[test]
+    fn groups_in_lanes_give_the_bits_of_muscle_by_muscle() {
+        let (mut grouped, mut single) = (crowd(1, |_| {}), crowd(2, |_| {}));
+        for frame in 0..60 {
+            grouped.step();
+            single.step();
+            if frame % 10 == 9 {
+                assert_eq!(bits(&grouped), bits(&single), "frame {frame}");
+            }
+        }
+        assert!(led_a_group(&grouped, 0) && led_a_group(&grouped, 16));
+        assert!(!led_a_group(&grouped, 1), "a group's first muscle leads it");
+        assert!(!led_a_group(&single, 0), "two threads: muscle by muscle");
+    }
+
+    /// A group whose muscle was retied by hand (its batch edited without
+    /// `touch_topology`) runs member by member: the retied muscle and its
+    /// group keep the bits of muscle by muscle.
+    #[test]
+    fn a_group_of_retied_muscles_runs_muscle_by_muscle() {
+        let retie = |s: &mut Solver| {
+            let fiber = &mut s.muscle_mut(5).constraints.fiber;
+            let (a, b) = (fiber.a[3], fiber.b[3]);
+            (fiber.a[3], fiber.b[3]) = (b, a);
+        };
+        let (mut grouped, mut single) = (crowd(1, retie), crowd(2, retie));
+        for _ in 0..20 {
+            grouped.step();
+            single.step();
+        }
+        assert_eq!(bits(&grouped), bits(&single));
+        assert!(
+            !led_a_group(&grouped, 4),
+            "the retied muscle's group ran muscle by muscle"
+        );
+        assert!(led_a_group(&grouped, 0));
+    }
+}
