@@ -96,7 +96,11 @@ impl DistanceLanes {
         self.z.clear();
         let coordinates = (0..n).map(|v| {
             let at = |k: usize| p[k][v];
-            (lanes_of(|k| at(k).x), lanes_of(|k| at(k).y), lanes_of(|k| at(k).z))
+            (
+                lanes_of(|k| at(k).x),
+                lanes_of(|k| at(k).y),
+                lanes_of(|k| at(k).z),
+            )
         });
         for (x, y, z) in coordinates {
             self.x.push(x);
