@@ -1,25 +1,29 @@
 //! Muscles of one topology in groups of [`LANES`], their distance
-//! constraints projected side by side ([`DistanceLanes`](crate::constraints::DistanceLanes)): the plain
+//! constraints and Volumes projected side by side
+//! ([`DistanceLanes`](crate::constraints::DistanceLanes),
+//! [`VolumeLanes`](crate::constraints::VolumeLanes)): the plain
 //! Gauss–Seidel pass (`Sequential`) over muscles, with the same bits.
 //!
 //! A group is [`LANES`] neighbours in the driver's list whose distance
 //! batches have the same index arrays (muscles swept from one recipe: all
-//! of T7's, all but one of T5's), that run the same iterations as plain
-//! Gauss–Seidel, and that are not surface layers. One task runs a group's
-//! block of iterations: in each iteration every member's closest data,
-//! its constraints before the distance batches, the four members'
-//! distance batches in lanes, then each member's constraints after them,
-//! its finish (bone contacts, a trailing Volume) and its staged snapshot.
-//! The members read one another only through the snapshots published
-//! before the block, so running their phases interleaved gives each the
-//! bits its own task gives. A group whose members turn out not to share
-//! their index arrays (a host retied one by hand) runs member by member.
+//! 144 of T7's), that run the same iterations as plain Gauss–Seidel, and
+//! that are not surface layers. One task runs a group's block of
+//! iterations: in each iteration every member's closest data and its
+//! constraints before the distance batches, the four members' distance
+//! batches in lanes, then each member's constraints after them and its
+//! bone contacts, the trailing Volumes in lanes (where the members'
+//! surfaces share one topology; member by member otherwise), and each
+//! member's staged snapshot. The members read one another only through
+//! the snapshots published before the block, so running their phases
+//! interleaved gives each the bits its own task gives. A group whose
+//! members turn out not to share their index arrays (a host retied one by
+//! hand) runs member by member.
 //!
 //! The groups are shared out over the threads in ranges as muscles are
 //! (`super::muscle_ranges`); the muscles past the last whole group run
-//! in the last group's task. With fewer groups than threads, or a muscle
-//! large enough to start first ([`super::parallel::for_each_muscle`]),
-//! the pass runs muscle by muscle.
+//! in the last group's task. With fewer than [`GROUPS_PER_THREAD`] groups
+//! a thread, or a muscle large enough to start first
+//! ([`super::parallel::for_each_muscle`]), the pass runs muscle by muscle.
 
 use super::bone_contacts::bone_contacts;
 use super::muscle_ranges::for_each_item_in_ranges;
