@@ -10,6 +10,12 @@
 
 use glam::Vec4;
 
+/// Lane `k` of `f(k)` for each of the four lanes.
+#[inline(always)]
+pub(crate) fn of(f: impl Fn(usize) -> f32) -> Vec4 {
+    Vec4::new(f(0), f(1), f(2), f(3))
+}
+
 /// The square root of each lane, rounded as `f32::sqrt` rounds it (IEEE
 /// square roots are exact to the half ulp in both forms).
 #[inline(always)]

@@ -43,12 +43,6 @@ pub struct DistanceLanes {
     starts: Vec<usize>,
 }
 
-/// Lane `k` of `f(k)` for each `k`.
-#[inline(always)]
-fn lanes_of(f: impl Fn(usize) -> f32) -> Vec4 {
-    Vec4::new(f(0), f(1), f(2), f(3))
-}
-
 impl DistanceLanes {
     /// Particles the lanes hold (0 before any load).
     pub fn particles(&self) -> usize {
@@ -62,7 +56,8 @@ impl DistanceLanes {
     pub fn load_batches(&mut self, w: [&[f32]; LANES], batches: [&[&DistanceBatch]; LANES]) {
         let particles = w.iter().map(|w| w.len()).min().unwrap_or(0);
         self.w.clear();
-        self.w.extend((0..particles).map(|v| lanes_of(|k| w[k][v])));
+        self.w
+            .extend((0..particles).map(|v| lanes::of(|k| w[k][v])));
         self.rest.clear();
         self.lambda.clear();
         self.compliance.clear();
@@ -71,10 +66,11 @@ impl DistanceLanes {
             let n = first.len();
             self.starts.push(self.rest.len());
             self.rest
-                .extend((0..n).map(|i| lanes_of(|k| batches[k][b].rest[i])));
+                .extend((0..n).map(|i| lanes::of(|k| batches[k][b].rest[i])));
             self.lambda
-                .extend((0..n).map(|i| lanes_of(|k| batches[k][b].lambda[i])));
-            self.compliance.push(lanes_of(|k| batches[k][b].compliance));
+                .extend((0..n).map(|i| lanes::of(|k| batches[k][b].lambda[i])));
+            self.compliance
+                .push(lanes::of(|k| batches[k][b].compliance));
         }
     }
 
@@ -97,9 +93,9 @@ impl DistanceLanes {
         let coordinates = (0..n).map(|v| {
             let at = |k: usize| p[k][v];
             (
-                lanes_of(|k| at(k).x),
-                lanes_of(|k| at(k).y),
-                lanes_of(|k| at(k).z),
+                lanes::of(|k| at(k).x),
+                lanes::of(|k| at(k).y),
+                lanes::of(|k| at(k).z),
             )
         });
         for (x, y, z) in coordinates {
@@ -126,8 +122,8 @@ impl DistanceLanes {
     pub fn solve(&mut self, topology: &[&DistanceBatch], inv_dt2: f32) {
         let tiny = Vec4::splat(1e-9);
         let (x, y, z, w) = (&mut self.x, &mut self.y, &mut self.z, &self.w);
-        let mut at = 0;
-        for (batch, &compliance) in topology.iter().zip(&self.compliance) {
+        let batches = topology.iter().zip(&self.compliance).zip(&self.starts);
+        for ((batch, &compliance), &at) in batches {
             let alpha = compliance * inv_dt2;
             let n = batch.len();
             let (a, b) = (&batch.a[..n], &batch.b[..n]);
@@ -155,7 +151,6 @@ impl DistanceLanes {
                 z[ib] = Vec4::select(moves, bz - wb * nz, bz);
                 lambda[i] = Vec4::select(moves, lambda[i] + dl, lambda[i]);
             }
-            at += n;
         }
     }
 }

@@ -12,6 +12,7 @@
 //! a `Vec3A` cross product takes.
 
 use super::{LANES, VolumeConstraint, VolumeProjection, delta_lambda};
+use crate::lanes;
 use glam::{Vec3, Vec4};
 
 /// Three coordinates of four muscles' vectors.
@@ -116,18 +117,17 @@ impl VolumeLanes {
     ) -> ([f64; LANES], [f64; LANES]) {
         let first = &*volumes[0];
         let n = first.surface_count;
-        let lanes = |f: &dyn Fn(usize) -> f32| Vec4::new(f(0), f(1), f(2), f(3));
         let o = Lanes3 {
-            x: lanes(&|k| p[k][0].x),
-            y: lanes(&|k| p[k][0].y),
-            z: lanes(&|k| p[k][0].z),
+            x: lanes::of(|k| p[k][0].x),
+            y: lanes::of(|k| p[k][0].y),
+            z: lanes::of(|k| p[k][0].z),
         };
         self.relative.clear();
         self.relative.extend((0..n).map(|v| {
             let at = Lanes3 {
-                x: lanes(&|k| p[k][v].x),
-                y: lanes(&|k| p[k][v].y),
-                z: lanes(&|k| p[k][v].z),
+                x: lanes::of(|k| p[k][v].x),
+                y: lanes::of(|k| p[k][v].y),
+                z: lanes::of(|k| p[k][v].z),
             };
             at.sub(o)
         }));
@@ -176,7 +176,7 @@ impl VolumeLanes {
                 y: g.y / sixth,
                 z: g.z / sixth,
             };
-            let weighted = lanes(&|k| w[k][v]) * g.dot(*g);
+            let weighted = lanes::of(|k| w[k][v]) * g.dot(*g);
             for (sum, t) in wg.iter_mut().zip(weighted.to_array()) {
                 *sum += t as f64;
             }
@@ -187,26 +187,28 @@ impl VolumeLanes {
         (c, wg)
     }
 
-    /// One projection of each muscle's Volume constraint, as far as `how`
-    /// says for it: [`VolumeConstraint::solve_with`] (serial) in four
+    /// One projection of each muscle's Volume constraint (`members[k]`:
+    /// muscle `k`'s, with its positions and inverse masses), as far as
+    /// `how` says for it: [`VolumeConstraint::solve_with`] (serial) in four
     /// lanes, with the same bits. The constraints share one topology
     /// ([`volumes_share_topology`]).
     pub fn solve(
         &mut self,
-        volumes: [&mut VolumeConstraint; LANES],
-        p: [&mut [Vec3]; LANES],
-        w: [&[f32]; LANES],
+        members: [(&mut VolumeConstraint, &mut [Vec3], &[f32]); LANES],
         inv_dt2: f32,
         how: [VolumeProjection; LANES],
     ) {
+        let [a, b, c, d] = members;
+        let (volumes, p, w) = (
+            [a.0, b.0, c.0, d.0],
+            [a.1, b.1, c.1, d.1],
+            [a.2, b.2, c.2, d.2],
+        );
         let n = volumes[0].surface_count;
         let alpha: [f32; LANES] = std::array::from_fn(|k| volumes[k].compliance * inv_dt2);
         let scale: [f64; LANES] =
             std::array::from_fn(|k| volumes[k].rest_volume.abs().max(f64::MIN_POSITIVE));
-        let mut limit = how.map(|how| match how {
-            VolumeProjection::Step => 1,
-            VolumeProjection::Converge => VolumeConstraint::MAX_NEWTON_STEPS,
-        });
+        let mut limit = how.map(VolumeProjection::steps_at_most);
         let mut step = [0usize; LANES];
         let mut done = [false; LANES];
         loop {
@@ -232,7 +234,7 @@ impl VolumeLanes {
                     let s = wv * dl;
                     *p += Vec3::new(g.x[k] * s, g.y[k] * s, g.z[k] * s);
                 }
-                if (c[k] / scale[k]).abs() < 1e-2 {
+                if (c[k] / scale[k]).abs() < VolumeConstraint::CLOSE {
                     done[k] = true;
                 }
             }
@@ -301,13 +303,8 @@ mod tests {
             let mut laned = four_volumes();
             let [a, b, c, d] = &mut laned;
             assert!(volumes_share_topology([&a.0, &b.0, &c.0, &d.0]));
-            VolumeLanes::default().solve(
-                [&mut a.0, &mut b.0, &mut c.0, &mut d.0],
-                [&mut a.1, &mut b.1, &mut c.1, &mut d.1],
-                [&a.2, &b.2, &c.2, &d.2],
-                3600.0,
-                how,
-            );
+            let members = [a, b, c, d].map(|(v, p, w)| (v, &mut p[..], &w[..]));
+            VolumeLanes::default().solve(members, 3600.0, how);
             let bits = |v: &[Vec3]| {
                 v.iter()
                     .map(|p| p.to_array().map(f32::to_bits))

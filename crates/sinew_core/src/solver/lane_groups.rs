@@ -17,7 +17,8 @@
 //! the snapshots published before the block, so running their phases
 //! interleaved gives each the bits its own task gives. A group whose
 //! members turn out not to share their index arrays (a host retied one by
-//! hand) runs member by member.
+//! hand) runs member by member; the group decides in each substep's first
+//! iteration ([`LaneGroup`]).
 //!
 //! The groups are shared out over the threads in ranges as muscles are
 //! (`super::muscle_ranges`); the muscles past the last whole group run
@@ -33,9 +34,25 @@ use super::pipeline::{self, gauss_seidel_over, split_volume};
 use super::settings::SolverMethod;
 use super::timings::TaskSplit;
 use crate::closest::TargetSet;
-use crate::constraints::{DistanceBatch, LANES, volumes_share_topology};
+use crate::constraints::{
+    DistanceBatch, DistanceLanes, LANES, VolumeLanes, volumes_share_topology,
+};
 use crate::muscle::{ConstraintKind, Muscle};
 use std::sync::{Mutex, PoisonError};
+
+/// What the first muscle of a group keeps for it: whether the group runs
+/// in lanes, decided in each substep's first iteration (a host edits
+/// batches between steps, and both ways give the same bits), and the
+/// lanes, whose storage is reused.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct LaneGroup {
+    /// The members share their distance index arrays and run alike.
+    fits: bool,
+    /// Their Volumes share one surface topology too.
+    volumes_fit: bool,
+    distance: DistanceLanes,
+    volume: VolumeLanes,
+}
 
 /// Groups a thread must have at least, for the pass to run by groups: a
 /// group is four muscles' work, taken whole, and the muscles' costs differ
@@ -121,10 +138,19 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
     timer: &TaskSplit,
 ) {
     let f = &it.substep.frame;
-    let order = split_volume(f.order.as_slice()).0;
+    let (order, trailing) = split_volume(f.order.as_slice());
+    let mut state = std::mem::take(&mut group[0].1.lane_group);
     let split = around_distance_run(order);
-    let Some((before, run, after)) = split.filter(|(_, run, _)| runs_in_lanes(group, it, run))
-    else {
+    if let Some((_, run, _)) = split.filter(|_| it.first_of_substep()) {
+        state.fits = runs_in_lanes(group, it, run);
+        let volumes = group.each_ref().map(|(m, _)| m.constraints.volume.as_ref());
+        state.volumes_fit = match volumes {
+            [Some(a), Some(b), Some(c), Some(d)] => volumes_share_topology([a, b, c, d]),
+            _ => false,
+        };
+    }
+    let Some((before, run, after)) = split.filter(|_| state.fits) else {
+        group[0].1.lane_group = state;
         for (m, ws) in group.iter_mut() {
             pipeline::iterate(m, ws, targets, it, timer);
         }
@@ -132,19 +158,11 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
     };
     let inv_h2 = it.substep.inv_h2;
     let split_muscles = f.parallelism.muscles;
-    let trailing = split_volume(f.order.as_slice()).1;
-    let mut lanes = std::mem::take(&mut group[0].1.lanes);
-    let volumes = group.each_ref().map(|(m, _)| m.constraints.volume.as_ref());
-    let mut volume_lanes = match volumes {
-        [Some(a), Some(b), Some(c), Some(d)] if volumes_share_topology([a, b, c, d]) => {
-            Some(std::mem::take(&mut group[0].1.volume_lanes))
-        }
-        _ => None,
-    };
     {
         let batches = group.each_ref().map(|(m, _)| distance_batches(m, run));
         let slices = batches.each_ref().map(|b| &b[..run.len()]);
-        lanes.load_batches(group.each_ref().map(|(m, _)| m.w.as_slice()), slices);
+        let w = group.each_ref().map(|(m, _)| m.w.as_slice());
+        state.distance.load_batches(w, slices);
     }
     let end = it.block_end();
     for it in it.block() {
@@ -160,6 +178,7 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
             let volume = it.volume_projection(m);
             gauss_seidel_over(m, before, inv_h2, Some(&ws.switched_on), volume);
         }
+        let lanes = &mut state.distance;
         lanes.load_positions(group.each_ref().map(|(m, _)| m.p.as_slice()));
         lanes.solve(&distance_batches(group[0].0, run)[..run.len()], inv_h2);
         let [a, b, c, d] = &mut *group;
@@ -175,30 +194,17 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
                 bone_contacts(m, ws, targets, it.first_of_substep(), split_muscles);
             }
         }
-        if trailing {
-            match &mut volume_lanes {
-                Some(lanes) => {
-                    let how = group.each_ref().map(|(m, _)| it.volume_projection(m));
-                    let [a, b, c, d] = &mut *group;
-                    let [a, b, c, d] = [&mut *a.0, &mut *b.0, &mut *c.0, &mut *d.0];
-                    let volumes = [a, b, c, d].map(|m| {
-                        let c = &mut m.constraints;
-                        (c.volume.as_mut().expect("checked"), &mut m.p[..], &m.w[..])
-                    });
-                    let [va, vb, vc, vd] = volumes;
-                    lanes.solve(
-                        [va.0, vb.0, vc.0, vd.0],
-                        [va.1, vb.1, vc.1, vd.1],
-                        [va.2, vb.2, vc.2, vd.2],
-                        inv_h2,
-                        how,
-                    );
-                }
-                None => {
-                    for (m, _) in group.iter_mut() {
-                        pipeline::project_volume(m, &it, inv_h2, split_muscles);
-                    }
-                }
+        if trailing && state.volumes_fit {
+            let how = group.each_ref().map(|(m, _)| it.volume_projection(m));
+            let [a, b, c, d] = &mut *group;
+            let members = [&mut *a.0, &mut *b.0, &mut *c.0, &mut *d.0].map(|m| {
+                let volume = m.constraints.volume.as_mut().expect("checked");
+                (volume, &mut m.p[..], &m.w[..])
+            });
+            state.volume.solve(members, inv_h2, how);
+        } else if trailing {
+            for (m, _) in group.iter_mut() {
+                pipeline::project_volume(m, &it, inv_h2, split_muscles);
             }
         }
         for (m, ws) in group.iter_mut() {
@@ -209,20 +215,13 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
         timer.lap(middle, 1);
     }
     for (lane, (m, _)) in group.iter_mut().enumerate() {
-        let c = &mut m.constraints;
-        for (batch, kind) in run.iter().enumerate() {
-            let b = match kind {
-                ConstraintKind::Branch => &mut c.branch,
-                ConstraintKind::Internal => &mut c.internal,
-                _ => &mut c.fiber,
-            };
-            lanes.store_lambdas(lane, batch, &mut b.lambda);
+        for (batch, &kind) in run.iter().enumerate() {
+            if let Some(b) = m.constraints.batch_mut(kind) {
+                state.distance.store_lambdas(lane, batch, b.lambdas_mut());
+            }
         }
     }
-    group[0].1.lanes = lanes;
-    if let Some(lanes) = volume_lanes {
-        group[0].1.volume_lanes = lanes;
-    }
+    group[0].1.lane_group = state;
 }
 
 /// Closest data and projection of every muscle for the block of
@@ -295,7 +294,7 @@ mod tests {
 
     /// Whether a muscle led a group in lanes (its lanes hold particles).
     fn led_a_group(s: &Solver, m: usize) -> bool {
-        s.workspaces()[m].lanes.particles() > 0
+        s.workspaces()[m].lane_group.distance.particles() > 0
     }
 
     /// On one thread the 21 muscles run in five groups, the one past them

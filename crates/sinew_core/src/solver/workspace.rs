@@ -139,12 +139,9 @@ pub struct MuscleWorkspace {
     pub(crate) plan: Option<(u64, ColorPlan)>,
     /// The Jacobi incidence, with the topology it was built for.
     pub(crate) jacobi: Option<(u64, JacobiState)>,
-    /// Where the muscle leads a group of muscles of its topology: the
-    /// group's distance batches in lanes (`super::lane_groups`).
-    pub(crate) lanes: crate::constraints::DistanceLanes,
-    /// Where the muscle leads such a group: the group's Volume projection
-    /// in lanes.
-    pub(crate) volume_lanes: crate::constraints::VolumeLanes,
+    /// Where the muscle leads a group of muscles of its topology: whether
+    /// the group runs in lanes, and its lanes (`super::lane_groups`).
+    pub(crate) lane_group: super::lane_groups::LaneGroup,
     /// A free muscle's momentum, recorded at the start of the substep.
     pub(crate) momentum: Option<RigidMomentum>,
     /// The muscle's last good frame, for the run-time guard.
