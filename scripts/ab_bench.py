@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compares two `sinew` binaries on a noisy, shared machine: both at once.
 
-    scripts/ab_bench.py OLD NEW [--rounds N] [--old-args A] [--new-args A] -- BENCH_ARGS...
+    scripts/ab_bench.py OLD NEW [--rounds N] [--threads N] [--old-args A] [--new-args A] -- BENCH_ARGS...
 
 e.g. `scripts/ab_bench.py /tmp/sinew_old target/release/sinew --rounds 3 --
 assets/scenes/t7.ron --from 120 --frames 40 --runs 3`.
@@ -27,6 +27,12 @@ dashes) and the same binary on both sides.
 One thread each, so it compares single-thread work (what a change to a
 kernel or a cache changes), not the scaling over threads. Standard library
 only; needs `taskset` (util-linux) and two cores.
+
+`--threads N` (N > 1) compares the scaling instead: each round runs the two
+one after the other, unpinned, each on N threads, OLD first in odd rounds
+and NEW first in even ones (a change to how work is shared out over the
+threads shows only so). A round's ratio then holds whatever drift came
+between its two runs, so take more rounds (8 or more).
 """
 import argparse
 import math
@@ -53,12 +59,18 @@ def blocks(text):
 def main():
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0],
-        usage="%(prog)s OLD NEW [--rounds N] [--old-args A] [--new-args A] -- BENCH_ARGS...",
+        usage="%(prog)s OLD NEW [--rounds N] [--threads N] [--old-args A] [--new-args A] -- BENCH_ARGS...",
     )
     parser.add_argument("old", help="the sinew binary to compare against")
     parser.add_argument("new", help="the sinew binary under test")
     parser.add_argument(
-        "--rounds", type=int, default=4, help="rounds, best even: pairs swap the cores (default 4)"
+        "--rounds", type=int, default=4, help="rounds, best even: pairs swap the cores, or which side runs first (default 4)"
+    )
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="threads for each side; above 1 the sides run one after the other, unpinned (default 1)",
     )
     parser.add_argument(
         "--old-args", default="", help="more bench arguments for OLD only (one string, split on spaces)"
@@ -74,28 +86,30 @@ def main():
         parser.error("give sinew bench's arguments after --")
     extra = {"old": args.old_args.split(), "new": args.new_args.split()}
     if any(a == "--threads" or a.startswith("--threads=") for a in bench + extra["old"] + extra["new"]):
-        parser.error("leave --threads out: each side runs on one pinned core")
+        parser.error("give the thread count as ab_bench's own --threads, before --")
     if args.rounds < 1:
         parser.error("--rounds must be at least 1")
     for binary in (args.old, args.new):
         if not os.access(binary, os.X_OK):
             sys.exit(f"{binary}: not an executable")
-    if (os.cpu_count() or 1) < 2:
+    if args.threads < 1:
+        parser.error("--threads must be at least 1")
+    pinned = args.threads == 1
+    if pinned and (os.cpu_count() or 1) < 2:
         sys.exit("needs two cores: one for each side")
 
+    sides = (("old", args.old), ("new", args.new))
     runs = {"old": [], "new": []}
     for r in range(args.rounds):
         cores = {"old": r % 2, "new": 1 - r % 2}
-        procs = {
-            side: subprocess.Popen(
-                ["taskset", "-c", str(cores[side]), binary, "bench", *bench, *extra[side], "--threads", "1"],
-                stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT,
-                text=True,
-            )
-            for side, binary in (("old", args.old), ("new", args.new))
-        }
-        for side, proc in procs.items():
+
+        def start(side, binary):
+            command = [binary, "bench", *bench, *extra[side], "--threads", str(args.threads)]
+            if pinned:
+                command = ["taskset", "-c", str(cores[side]), *command]
+            return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+        def collect(side, proc):
             out, _ = proc.communicate()
             if proc.returncode != 0:
                 sys.exit(f"{side} ({getattr(args, side)}) failed in round {r + 1}:\n{out}")
@@ -103,8 +117,19 @@ def main():
             if not found:
                 sys.exit(f"{side}: no block lines in its output:\n{out}")
             runs[side].append(found)
+
+        if pinned:
+            procs = {side: start(side, binary) for side, binary in sides}
+            for side, proc in procs.items():
+                collect(side, proc)
+            how = f"old core {cores['old']}"
+        else:
+            order = sides if r % 2 == 0 else sides[::-1]
+            for side, binary in order:
+                collect(side, start(side, binary))
+            how = f"{order[0][0]} first"
         wall = [runs[s][-1].get("wall", float("nan")) for s in ("old", "new")]
-        print(f"round {r + 1}: wall {wall[0]:.2f} / {wall[1]:.2f} ms (old core {cores['old']})")
+        print(f"round {r + 1}: wall {wall[0]:.2f} / {wall[1]:.2f} ms ({how})")
 
     names = [n for n in runs["old"][0] if all(n in run for run in runs["old"] + runs["new"])]
     print(f"\n{'block':<16}{'old ms':>10}{'new ms':>10}{'new/old':>10}   per round")

@@ -20,14 +20,17 @@
 //! hand) runs member by member; the group decides in each substep's first
 //! iteration ([`LaneGroup`]).
 //!
-//! The groups are shared out over the threads in ranges as muscles are
-//! (`super::muscle_ranges`); the muscles past the last whole group run
-//! in the last group's task. With fewer than [`GROUPS_PER_THREAD`] groups
-//! a thread, or a muscle large enough to start first
+//! The muscles are shared out over the threads in ranges as they are
+//! muscle by muscle (`super::muscle_ranges`), a range of the same size
+//! for each thread ([`GroupShare`]): its thread runs the whole groups at
+//! its front, then the muscles past them one by one; a thread out of work
+//! takes the others' muscles from their backs, the lone ones first, then
+//! whole groups. With fewer than [`GROUPS_PER_THREAD`] groups a thread,
+//! or a muscle large enough to start first
 //! ([`super::parallel::for_each_muscle`]), the pass runs muscle by muscle.
 
 use super::bone_contacts::bone_contacts;
-use super::muscle_ranges::for_each_item_in_ranges;
+use super::muscle_ranges::{MAX_RANGES, Share, for_each_in_shares};
 use super::parallel::{MusclePair, dominant, for_each_muscle};
 use super::params::IterationParams;
 use super::pipeline::{self, gauss_seidel_over, split_volume};
@@ -56,10 +59,13 @@ pub(crate) struct LaneGroup {
 
 /// Groups a thread must have at least, for the pass to run by groups: a
 /// group is four muscles' work, taken whole, and the muscles' costs differ
-/// (their contacts). P4's 17 muscles on two threads, four groups, ran
-/// ×1.018 slower by groups (six alternating pairs); T7's 144, 36 groups,
-/// ×0.91 faster (five pairs).
-const GROUPS_PER_THREAD: usize = 4;
+/// (their contacts). P4's 17 muscles on two threads (four groups and a
+/// muscle) ran ×0.90 faster by groups in shares of a thread's size with
+/// their lone muscles last (eight alternating pairs; ×1.018 *slower* when
+/// the groups were shared out in ranges of equal group counts, the lone
+/// muscle in the last group's task); T7's 144, 36 groups, ×0.91 faster
+/// (five pairs).
+const GROUPS_PER_THREAD: usize = 2;
 
 /// Whether `kind` is projected by a [`DistanceBatch`].
 fn is_distance(kind: ConstraintKind) -> bool {
@@ -246,21 +252,95 @@ pub(super) fn iterate_by_muscle<T: TargetSet + Sync + ?Sized>(
         });
         return;
     }
-    let (groups, rest) = muscles.as_chunks_mut::<LANES>();
-    let rest = Mutex::new(rest);
-    let last = groups.len().saturating_sub(1);
-    let run = |i: usize, group: &mut [MusclePair; LANES]| {
-        iterate_group(group, targets, it, timer);
-        if i == last {
-            let mut rest = rest.lock().unwrap_or_else(PoisonError::into_inner);
-            for (m, ws) in rest.iter_mut() {
-                pipeline::iterate(m, ws, targets, it, timer);
-            }
-        }
+    let run = |task: Task<MusclePair>| match task {
+        Task::Group(group) => iterate_group(group, targets, it, timer),
+        Task::Muscle((m, ws)) => pipeline::iterate(m, ws, targets, it, timer),
     };
     match pool {
-        Some(pool) => pool.install(|| for_each_item_in_ranges(groups, threads, &run)),
-        None => groups.iter_mut().enumerate().for_each(|(i, g)| run(i, g)),
+        Some(pool) => {
+            // A share of the same size for each thread, as muscle by
+            // muscle: its groups stay on the thread block after block.
+            let mut shares: [Mutex<GroupShare<MusclePair>>; MAX_RANGES] =
+                std::array::from_fn(|_| Mutex::default());
+            let size = muscles.len().div_ceil(threads.clamp(1, MAX_RANGES));
+            let mut count = 0;
+            for (muscles, share) in muscles.chunks_mut(size.max(1)).zip(&mut shares) {
+                *share.get_mut().unwrap_or_else(PoisonError::into_inner) = GroupShare::of(muscles);
+                count += 1;
+            }
+            pool.install(|| for_each_in_shares(&shares[..count], &run));
+        }
+        None => {
+            let mut share = GroupShare::of(muscles);
+            while let Some(task) = share.front() {
+                run(task);
+            }
+        }
+    }
+}
+
+/// A task of a pass by groups: a group of muscles in lanes, or a muscle
+/// on its own.
+#[derive(Debug, PartialEq)]
+enum Task<'a, T> {
+    Group(&'a mut [T; LANES]),
+    Muscle(&'a mut T),
+}
+
+/// A thread's share of the muscles in a pass by groups: as many whole
+/// groups from its front as it holds, then its last muscles one by one
+/// (fewer than [`LANES`]), which a thread out of work takes first from
+/// its back.
+struct GroupShare<'a, T> {
+    muscles: &'a mut [T],
+    /// Whole groups left at the front of `muscles`.
+    groups: usize,
+}
+
+impl<T> Default for GroupShare<'_, T> {
+    fn default() -> Self {
+        Self {
+            muscles: &mut [],
+            groups: 0,
+        }
+    }
+}
+
+impl<'a, T> GroupShare<'a, T> {
+    /// `muscles` as a share.
+    fn of(muscles: &'a mut [T]) -> Self {
+        let groups = muscles.len() / LANES;
+        Self { muscles, groups }
+    }
+}
+
+impl<'a, T: Send> Share for GroupShare<'a, T> {
+    type Item = Task<'a, T>;
+
+    fn front(&mut self) -> Option<Task<'a, T>> {
+        let muscles = std::mem::take(&mut self.muscles);
+        if self.groups > 0 {
+            let (group, rest) = muscles.split_first_chunk_mut::<LANES>()?;
+            (self.muscles, self.groups) = (rest, self.groups - 1);
+            Some(Task::Group(group))
+        } else {
+            let (muscle, rest) = muscles.split_first_mut()?;
+            self.muscles = rest;
+            Some(Task::Muscle(muscle))
+        }
+    }
+
+    fn back(&mut self) -> Option<Task<'a, T>> {
+        let muscles = std::mem::take(&mut self.muscles);
+        if muscles.len() > self.groups * LANES {
+            let (muscle, rest) = muscles.split_last_mut()?;
+            self.muscles = rest;
+            Some(Task::Muscle(muscle))
+        } else {
+            let (rest, group) = muscles.split_last_chunk_mut::<LANES>()?;
+            (self.muscles, self.groups) = (rest, self.groups - 1);
+            Some(Task::Group(group))
+        }
     }
 }
 
@@ -297,23 +377,61 @@ mod tests {
         s.workspaces()[m].lane_group.distance.particles() > 0
     }
 
-    /// On one thread the 21 muscles run in five groups, the one past them
-    /// in the last group's task; on two, muscle by muscle (five groups are
-    /// too few to share out). Both give the same bits, every ten frames
-    /// over sixty.
+    /// On one thread the 21 muscles run in five groups and the one past
+    /// them alone; on two, in a share each of 11 and 10 muscles (two
+    /// groups each, the muscles past them alone); on three, muscle by
+    /// muscle (five groups are too few to share out). All give the same
+    /// bits, every ten frames over sixty.
     #[test]
     fn groups_in_lanes_give_the_bits_of_muscle_by_muscle() {
-        let (mut grouped, mut single) = (crowd(1, |_| {}), crowd(2, |_| {}));
+        let mut solvers = [1, 2, 3].map(|threads| crowd(threads, |_| {}));
         for frame in 0..60 {
-            grouped.step();
-            single.step();
+            for s in &mut solvers {
+                s.step();
+            }
             if frame % 10 == 9 {
-                assert_eq!(bits(&grouped), bits(&single), "frame {frame}");
+                let [one, two, single] = &solvers;
+                assert_eq!(bits(one), bits(single), "one thread, frame {frame}");
+                assert_eq!(bits(two), bits(single), "two threads, frame {frame}");
             }
         }
-        assert!(led_a_group(&grouped, 0) && led_a_group(&grouped, 16));
-        assert!(!led_a_group(&grouped, 1), "a group's first muscle leads it");
-        assert!(!led_a_group(&single, 0), "two threads: muscle by muscle");
+        let [one, two, single] = &solvers;
+        assert!(led_a_group(one, 0) && led_a_group(one, 16));
+        assert!(!led_a_group(one, 1), "a group's first muscle leads it");
+        assert!(
+            !led_a_group(one, 20),
+            "the muscle past the groups runs alone"
+        );
+        // Two shares: muscles 0–10 (groups at 0 and 4, 8–10 alone) and
+        // 11–20 (groups at 11 and 15, 19–20 alone).
+        let led: Vec<usize> = (0..21).filter(|&m| led_a_group(two, m)).collect();
+        assert_eq!(led, [0, 4, 11, 15], "two threads: the groups of each share");
+        assert!(!led_a_group(single, 0), "three threads: muscle by muscle");
+    }
+
+    /// A share's own thread takes its whole groups first and then its
+    /// lone muscles; a thread out of work takes the lone muscles first
+    /// (the last first), then the groups from the back; each muscle once.
+    #[test]
+    fn a_share_gives_its_groups_from_the_front_and_its_lone_muscles_from_the_back() {
+        use super::{GroupShare, Share, Task};
+        let indices = |task: Task<usize>| match task {
+            Task::Group(g) => g.to_vec(),
+            Task::Muscle(m) => vec![*m],
+        };
+        let mut muscles: Vec<usize> = (0..11).collect();
+        let mut share = GroupShare::of(&mut muscles);
+        assert_eq!(share.front().map(indices), Some(vec![0, 1, 2, 3]));
+        assert_eq!(share.back().map(indices), Some(vec![10]));
+        assert_eq!(share.back().map(indices), Some(vec![9]));
+        assert_eq!(share.front().map(indices), Some(vec![4, 5, 6, 7]));
+        assert_eq!(share.front().map(indices), Some(vec![8]));
+        assert_eq!(share.front(), None);
+        assert_eq!(share.back(), None);
+        let mut muscles: Vec<usize> = (0..9).collect();
+        let mut share = GroupShare::of(&mut muscles);
+        let from_back: Vec<Vec<usize>> = std::iter::from_fn(|| share.back().map(indices)).collect();
+        assert_eq!(from_back, [vec![8], vec![4, 5, 6, 7], vec![0, 1, 2, 3]]);
     }
 
     /// A group whose muscle was retied by hand (its batch edited without
@@ -326,7 +444,7 @@ mod tests {
             let (a, b) = (fiber.a[3], fiber.b[3]);
             (fiber.a[3], fiber.b[3]) = (b, a);
         };
-        let (mut grouped, mut single) = (crowd(1, retie), crowd(2, retie));
+        let (mut grouped, mut single) = (crowd(1, retie), crowd(3, retie));
         for _ in 0..20 {
             grouped.step();
             single.step();

@@ -20,7 +20,12 @@
 //! The members are a parallel iterator over the threads' count (no
 //! allocation); a member that has not started when the others finish is
 //! run by a waiting one, whose spin runs pending rayon work, and finds
-//! nothing left. Only a thread's outermost member waits: a thread waiting
+//! nothing left.
+//!
+//! What a thread takes from a range is a [`Share`]'s to say: a range of
+//! items hands them out one at a time; a pass by groups of muscles in
+//! lanes (`super::lane_groups`) hands out whole groups from a share's
+//! front and its lone muscles from its back. Only a thread's outermost member waits: a thread waiting
 //! inside a muscle for a chunk another thread took runs pending work too,
 //! and a member it starts there would wait for that muscle, beneath it on
 //! the same thread, for ever (a 16-thread probe with smaller closest-data
@@ -41,7 +46,7 @@ use std::time::{Duration, Instant};
 
 /// Most ranges, and members: on a pool of more threads, at most this many
 /// of them share the items out.
-const MAX_RANGES: usize = 64;
+pub(super) const MAX_RANGES: usize = 64;
 
 /// Runs `f` on every muscle of `muscles` on the current rayon pool's
 /// `threads` threads (module docs).
@@ -61,7 +66,6 @@ pub(super) fn for_each_item_in_ranges<T: Send>(
     threads: usize,
     f: &(impl Fn(usize, &mut T) + Sync),
 ) {
-    use rayon::prelude::*;
     let members = threads.clamp(1, MAX_RANGES);
     let size = items.len().div_ceil(members).max(1);
     let mut ranges: [Mutex<Range<T>>; MAX_RANGES] =
@@ -70,7 +74,43 @@ pub(super) fn for_each_item_in_ranges<T: Send>(
         *range.get_mut().unwrap_or_else(PoisonError::into_inner) =
             (k * size, chunk.iter_mut().enumerate());
     }
-    let ranges = &ranges[..members];
+    for_each_in_shares(&ranges[..members], &|(i, item)| f(i, item));
+}
+
+/// A thread's share of a pass's work: its own thread takes it from the
+/// front, a thread out of work of its own from the back.
+pub(super) trait Share: Send {
+    /// One piece of work.
+    type Item;
+    /// The share's next item, from its front.
+    fn front(&mut self) -> Option<Self::Item>;
+    /// The share's last item left.
+    fn back(&mut self) -> Option<Self::Item>;
+}
+
+/// A range of items: the index of its first, and its items left numbered
+/// from 0; an item comes with its index.
+impl<'a, T: Send> Share for Range<'a, T> {
+    type Item = (usize, &'a mut T);
+
+    fn front(&mut self) -> Option<Self::Item> {
+        let start = self.0;
+        self.1.next().map(|(i, item)| (start + i, item))
+    }
+
+    fn back(&mut self) -> Option<Self::Item> {
+        let start = self.0;
+        self.1.next_back().map(|(i, item)| (start + i, item))
+    }
+}
+
+/// Runs `f` on every item of `shares`, one member per share on the
+/// current rayon pool (module docs): each member its own share from the
+/// front, then the others' from their backs, and the outermost member of
+/// a thread waits for the rest spinning.
+pub(super) fn for_each_in_shares<S: Share>(shares: &[Mutex<S>], f: &(impl Fn(S::Item) + Sync)) {
+    use rayon::prelude::*;
+    let members = shares.len();
     let finished = AtomicUsize::new(0);
     (0..members)
         .into_par_iter()
@@ -81,14 +121,14 @@ pub(super) fn for_each_item_in_ranges<T: Send>(
                 // Counted as finished even if `f` panics, so that no member
                 // waits for it (the panic reaches the caller).
                 let _finish = Finish(&finished);
-                // Its own range from the front, then the others' from the back.
-                while let Some((i, item)) = take(&ranges[member], false) {
-                    f(i, item);
+                // Its own share from the front, then the others' from the back.
+                while let Some(item) = take(&shares[member], false) {
+                    f(item);
                 }
                 for k in 1..members {
-                    let other = &ranges[(member + k) % members];
-                    while let Some((i, item)) = take(other, true) {
-                        f(i, item);
+                    let other = &shares[(member + k) % members];
+                    while let Some(item) = take(other, true) {
+                        f(item);
                     }
                 }
             }
@@ -149,16 +189,13 @@ impl Drop for Member {
 /// A range: the index of its first item, and its items left, numbered from 0.
 type Range<'a, T> = (usize, std::iter::Enumerate<std::slice::IterMut<'a, T>>);
 
-/// The next item of a range and its index, from its front or its back.
-fn take<'a, T>(range: &Mutex<Range<'a, T>>, back: bool) -> Option<(usize, &'a mut T)> {
-    let mut range = range.lock().unwrap_or_else(PoisonError::into_inner);
-    let start = range.0;
-    let next = if back {
-        range.1.next_back()
-    } else {
-        range.1.next()
-    };
-    next.map(|(i, item)| (start + i, item))
+/// The next item of a share, from its front or its back.
+fn take<S: Share>(share: &Mutex<S>, back: bool) -> Option<S::Item> {
+    let mut share = share.lock().unwrap_or_else(PoisonError::into_inner);
+    match back {
+        true => share.back(),
+        false => share.front(),
+    }
 }
 
 /// Counts a member finished when dropped.
