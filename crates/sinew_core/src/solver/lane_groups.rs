@@ -30,7 +30,7 @@
 //! ([`super::parallel::for_each_muscle`]), the pass runs muscle by muscle.
 
 use super::bone_contacts::bone_contacts;
-use super::muscle_ranges::{MAX_RANGES, Share, for_each_in_shares};
+use super::muscle_ranges::{Share, for_each_in_ranges_as};
 use super::parallel::{MusclePair, dominant, for_each_muscle};
 use super::params::IterationParams;
 use super::pipeline::{self, gauss_seidel_over, split_volume};
@@ -41,7 +41,6 @@ use crate::constraints::{
     DistanceBatch, DistanceLanes, LANES, VolumeLanes, volumes_share_topology,
 };
 use crate::muscle::{ConstraintKind, Muscle};
-use std::sync::{Mutex, PoisonError};
 
 /// What the first muscle of a group keeps for it: whether the group runs
 /// in lanes, decided in each substep's first iteration (a host edits
@@ -257,19 +256,12 @@ pub(super) fn iterate_by_muscle<T: TargetSet + Sync + ?Sized>(
         Task::Muscle((m, ws)) => pipeline::iterate(m, ws, targets, it, timer),
     };
     match pool {
-        Some(pool) => {
-            // A share of the same size for each thread, as muscle by
-            // muscle: its groups stay on the thread block after block.
-            let mut shares: [Mutex<GroupShare<MusclePair>>; MAX_RANGES] =
-                std::array::from_fn(|_| Mutex::default());
-            let size = muscles.len().div_ceil(threads.clamp(1, MAX_RANGES));
-            let mut count = 0;
-            for (muscles, share) in muscles.chunks_mut(size.max(1)).zip(&mut shares) {
-                *share.get_mut().unwrap_or_else(PoisonError::into_inner) = GroupShare::of(muscles);
-                count += 1;
-            }
-            pool.install(|| for_each_in_shares(&shares[..count], &run));
-        }
+        // A share of the same size for each thread, as muscle by muscle:
+        // its groups stay on the thread block after block.
+        Some(pool) => pool.install(|| {
+            let share = |_, muscles| GroupShare::of(muscles);
+            for_each_in_ranges_as(muscles, threads, share, &run);
+        }),
         None => {
             let mut share = GroupShare::of(muscles);
             while let Some(task) = share.front() {

@@ -46,7 +46,7 @@ use std::time::{Duration, Instant};
 
 /// Most ranges, and members: on a pool of more threads, at most this many
 /// of them share the items out.
-pub(super) const MAX_RANGES: usize = 64;
+const MAX_RANGES: usize = 64;
 
 /// Runs `f` on every muscle of `muscles` on the current rayon pool's
 /// `threads` threads (module docs).
@@ -61,20 +61,32 @@ pub(super) fn for_each_in_ranges(
 /// Runs `f(index, item)` on every item of `items` on the current rayon
 /// pool's `threads` threads, shared out in ranges as the muscles are
 /// (module docs): a pass over muscles or their snapshots.
-pub(super) fn for_each_item_in_ranges<T: Send>(
-    items: &mut [T],
+pub(super) fn for_each_item_in_ranges<'a, T: Send>(
+    items: &'a mut [T],
     threads: usize,
     f: &(impl Fn(usize, &mut T) + Sync),
 ) {
+    let range = |start, chunk: &'a mut [T]| (start, chunk.iter_mut().enumerate());
+    for_each_in_ranges_as(items, threads, range, &|(i, item)| f(i, item));
+}
+
+/// Runs `f` on every item of the shares that `share(start, range)` makes
+/// of `items` cut into one range of the same size per thread (`start`:
+/// the index of the range's first item) on the current rayon pool's
+/// `threads` threads (module docs).
+pub(super) fn for_each_in_ranges_as<'a, T, S: Share + Default>(
+    items: &'a mut [T],
+    threads: usize,
+    share: impl Fn(usize, &'a mut [T]) -> S,
+    f: &(impl Fn(S::Item) + Sync),
+) {
     let members = threads.clamp(1, MAX_RANGES);
     let size = items.len().div_ceil(members).max(1);
-    let mut ranges: [Mutex<Range<T>>; MAX_RANGES] =
-        std::array::from_fn(|_| Mutex::new((0, Default::default())));
-    for (k, (range, chunk)) in ranges.iter_mut().zip(items.chunks_mut(size)).enumerate() {
-        *range.get_mut().unwrap_or_else(PoisonError::into_inner) =
-            (k * size, chunk.iter_mut().enumerate());
+    let mut shares: [Mutex<S>; MAX_RANGES] = std::array::from_fn(|_| Mutex::default());
+    for (k, (slot, chunk)) in shares.iter_mut().zip(items.chunks_mut(size)).enumerate() {
+        *slot.get_mut().unwrap_or_else(PoisonError::into_inner) = share(k * size, chunk);
     }
-    for_each_in_shares(&ranges[..members], &|(i, item)| f(i, item));
+    for_each_in_shares(&shares[..members], f);
 }
 
 /// A thread's share of a pass's work: its own thread takes it from the
@@ -108,7 +120,7 @@ impl<'a, T: Send> Share for Range<'a, T> {
 /// current rayon pool (module docs): each member its own share from the
 /// front, then the others' from their backs, and the outermost member of
 /// a thread waits for the rest spinning.
-pub(super) fn for_each_in_shares<S: Share>(shares: &[Mutex<S>], f: &(impl Fn(S::Item) + Sync)) {
+fn for_each_in_shares<S: Share>(shares: &[Mutex<S>], f: &(impl Fn(S::Item) + Sync)) {
     use rayon::prelude::*;
     let members = shares.len();
     let finished = AtomicUsize::new(0);
