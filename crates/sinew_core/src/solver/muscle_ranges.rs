@@ -20,12 +20,7 @@
 //! The members are a parallel iterator over the threads' count (no
 //! allocation); a member that has not started when the others finish is
 //! run by a waiting one, whose spin runs pending rayon work, and finds
-//! nothing left.
-//!
-//! What a thread takes from a range is a [`Share`]'s to say: a range of
-//! items hands them out one at a time; a pass by groups of muscles in
-//! lanes (`super::lane_groups`) hands out whole groups from a share's
-//! front and its lone muscles from its back. Only a thread's outermost member waits: a thread waiting
+//! nothing left. Only a thread's outermost member waits: a thread waiting
 //! inside a muscle for a chunk another thread took runs pending work too,
 //! and a member it starts there would wait for that muscle, beneath it on
 //! the same thread, for ever (a 16-thread probe with smaller closest-data
@@ -36,6 +31,11 @@
 //! waits in rayon's join, which runs the chunk's muscle on. Muscles read
 //! each other only through snapshots, so which thread runs which gives the
 //! same bits.
+//!
+//! What a thread takes from a range is a [`Share`]'s to say: a range of
+//! items hands them out one at a time; a pass by groups of muscles in
+//! lanes (`super::lane_groups`) hands out whole groups from a share's
+//! front and its lone muscles from its back.
 
 use super::parallel::MusclePair;
 use super::workspace::MuscleWorkspace;
