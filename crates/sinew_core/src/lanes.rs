@@ -1,19 +1,29 @@
 //! Four values side by side in one SSE register (glam's `Vec4`), for
 //! kernels that run four muscles of one topology at once
 //! ([`crate::constraints::DistanceLanes`]): glam gives the lane-wise
-//! arithmetic, this module the square root, which glam takes lane by lane.
+//! arithmetic, this module the lanes built from four muscles' values
+//! (`of`, and `of3` for vectors) and the square root, which glam takes
+//! lane by lane.
 //! With `prefetch` and `solver::sweep` the crate's only `unsafe`.
 #![expect(
     unsafe_code,
     reason = "SSE's packed square root is an intrinsic; SSE2 is part of every x86_64 processor"
 )]
 
-use glam::Vec4;
+use glam::{Vec3, Vec4};
 
 /// Lane `k` of `f(k)` for each of the four lanes.
 #[inline(always)]
 pub(crate) fn of(f: impl Fn(usize) -> f32) -> Vec4 {
     Vec4::new(f(0), f(1), f(2), f(3))
+}
+
+/// The coordinates of `f(k)` in lane `k` for each of the four lanes: four
+/// vectors turned into an x, a y and a z of four lanes each.
+#[inline(always)]
+pub(crate) fn of3(f: impl Fn(usize) -> Vec3) -> (Vec4, Vec4, Vec4) {
+    let v = [f(0), f(1), f(2), f(3)];
+    (of(|k| v[k].x), of(|k| v[k].y), of(|k| v[k].z))
 }
 
 /// The square root of each lane, rounded as `f32::sqrt` rounds it (IEEE

@@ -90,15 +90,7 @@ impl DistanceLanes {
         self.x.clear();
         self.y.clear();
         self.z.clear();
-        let coordinates = (0..n).map(|v| {
-            let at = |k: usize| p[k][v];
-            (
-                lanes::of(|k| at(k).x),
-                lanes::of(|k| at(k).y),
-                lanes::of(|k| at(k).z),
-            )
-        });
-        for (x, y, z) in coordinates {
+        for (x, y, z) in (0..n).map(|v| lanes::of3(|k| p[k][v])) {
             self.x.push(x);
             self.y.push(y);
             self.z.push(z);

@@ -24,6 +24,13 @@ struct Lanes3 {
 }
 
 impl Lanes3 {
+    /// Lane `k` of `f(k)` for each of the four lanes.
+    #[inline(always)]
+    fn of(f: impl Fn(usize) -> Vec3) -> Self {
+        let (x, y, z) = lanes::of3(f);
+        Self { x, y, z }
+    }
+
     #[inline(always)]
     fn add(self, o: Self) -> Self {
         Self {
@@ -117,20 +124,10 @@ impl VolumeLanes {
     ) -> ([f64; LANES], [f64; LANES]) {
         let first = &*volumes[0];
         let n = first.surface_count;
-        let o = Lanes3 {
-            x: lanes::of(|k| p[k][0].x),
-            y: lanes::of(|k| p[k][0].y),
-            z: lanes::of(|k| p[k][0].z),
-        };
+        let o = Lanes3::of(|k| p[k][0]);
         self.relative.clear();
-        self.relative.extend((0..n).map(|v| {
-            let at = Lanes3 {
-                x: lanes::of(|k| p[k][v].x),
-                y: lanes::of(|k| p[k][v].y),
-                z: lanes::of(|k| p[k][v].z),
-            };
-            at.sub(o)
-        }));
+        self.relative
+            .extend((0..n).map(|v| Lanes3::of(|k| p[k][v]).sub(o)));
         self.gradient.clear();
         self.gradient.resize(n, Lanes3::default());
         let (r, g) = (&self.relative[..n], &mut self.gradient[..n]);

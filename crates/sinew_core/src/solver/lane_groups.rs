@@ -59,11 +59,11 @@ pub(crate) struct LaneGroup {
 /// Groups a thread must have at least, for the pass to run by groups: a
 /// group is four muscles' work, taken whole, and the muscles' costs differ
 /// (their contacts). P4's 17 muscles on two threads (four groups and a
-/// muscle) ran ×0.90 faster by groups in shares of a thread's size with
-/// their lone muscles last (eight alternating pairs; ×1.018 *slower* when
-/// the groups were shared out in ranges of equal group counts, the lone
-/// muscle in the last group's task); T7's 144, 36 groups, ×0.91 faster
-/// (five pairs).
+/// muscle) ran ×0.934 faster by groups in shares of a thread's size with
+/// their lone muscles last (ten rounds of `scripts/ab_bench.py --threads
+/// 2`; ×1.018 *slower* when the groups were shared out in ranges of equal
+/// group counts, the lone muscle in the last group's task); T7's 144, 36
+/// groups, ×0.91 faster (five pairs).
 const GROUPS_PER_THREAD: usize = 2;
 
 /// Whether `kind` is projected by a [`DistanceBatch`].
