@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Compares two `sinew` binaries on a noisy, shared machine: both at once.
+"""Compares two `sinew` binaries on a noisy, shared machine: both at once (or in turn, on several threads).
 
     scripts/ab_bench.py OLD NEW [--rounds N] [--threads N] [--old-args A] [--new-args A] -- BENCH_ARGS...
 
