@@ -180,9 +180,66 @@ pub fn reference_for(active: f64, work: f64, threads: u32) -> f64 {
     )
 }
 
+/// Sinew's runs, each with the reference sweep timed right after it over
+/// the same work. The machine's speed drifts by a third within minutes,
+/// so a ratio of sinew's median to a reference timed once, after all the
+/// runs, held that drift; each run's ratio to its own neighbour does not
+/// (`scripts/ab_bench.py`'s reason for pairing runs).
+#[derive(Clone, Debug, Default)]
+pub struct PairedRuns {
+    /// Each run's ns per active constraint-iteration.
+    ns: Vec<f64>,
+    /// The reference's, timed right after that run.
+    reference: Vec<f64>,
+}
+
+impl PairedRuns {
+    /// Records a run of `ns` per active constraint-iteration over `active`
+    /// constraints and `work` constraint-iterations a frame, and times the
+    /// reference over the same on `threads` right after it.
+    pub fn push(&mut self, ns: f64, active: f64, work: f64, threads: u32) {
+        self.push_timed(ns, reference_for(active, work, threads));
+    }
+
+    /// Records a run of `ns` and the reference's `reference` ns after it.
+    fn push_timed(&mut self, ns: f64, reference: f64) {
+        self.ns.push(ns);
+        self.reference.push(reference);
+    }
+
+    /// The reference's median ns per constraint-iteration over the runs.
+    pub fn reference_ns(&self) -> f64 {
+        median(self.reference.clone())
+    }
+
+    /// The median of each run's ratio to the reference timed after it.
+    pub fn ratio(&self) -> f64 {
+        let ratios = (self.ns.iter().zip(&self.reference)).map(|(ns, r)| ns / r);
+        median(ratios.collect())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A machine that slows down run after run slows each run's reference
+    /// alike: the paired ratio keeps the true one, where the median run
+    /// against a reference timed once at the end would read 20 / 15.
+    #[test]
+    fn paired_runs_cancel_the_machines_drift() {
+        let mut paired = PairedRuns::default();
+        for slowdown in [1.0, 2.0, 3.0] {
+            paired.push_timed(10.0 * slowdown, 5.0 * slowdown);
+        }
+        assert_eq!(paired.ratio(), 2.0);
+        assert_eq!(paired.reference_ns(), 10.0);
+        // One run disturbed (another tenant during it alone) moves the
+        // median of the ratios no further than its neighbours'.
+        paired.push_timed(80.0, 5.0);
+        paired.push_timed(12.0, 5.0);
+        assert_eq!(paired.ratio(), 2.0);
+    }
 
     /// The parallel sweep is the serial one: chunks of a colour share nothing.
     #[test]

@@ -5,7 +5,8 @@
 //! ms/frame (median of the runs), fps, the active constraints (switched-off
 //! ones reported apart), ns per active constraint-iteration and, in the same
 //! process, the [coloured reference sweep](crate::reference_kernel) over as
-//! many constraints on as many threads, with the ratio to it. P1–P4 are
+//! many constraints on as many threads, timed after each run, with the
+//! median of the runs' ratios to it ([`PairedRuns`]). P1–P4 are
 //! timed from their first frame; T7 in a walk window (frames 120–239) and a
 //! run window (420–539), stepped to from the start. Also the colour counts
 //! and group-size distribution of each colouring (the thesis' Appendix A)
@@ -14,7 +15,7 @@
 
 use crate::bench::{Method, active_work, median, rayon_cores, runs_parallel, time_frames};
 use crate::commands::load_solver;
-use crate::reference_kernel::reference_for;
+use crate::reference_kernel::PairedRuns;
 use serde::Serialize;
 use sinew_core::solver::coloring::{ColorPlan, PlanKind};
 use sinew_core::{Solver, SolverMethod, StepTimings};
@@ -214,8 +215,11 @@ struct ResultRow {
     ns_per_constraint_iteration: f64,
     /// The coloured reference sweep over as many constraints on as many
     /// threads (one where the scene stays on the calling thread, below
-    /// `parallel_threshold`), ns per constraint-iteration.
+    /// `parallel_threshold`), ns per constraint-iteration: the median of
+    /// its timings, one after each run.
     reference_ns: f64,
+    /// The median of each run's ns per active constraint-iteration over
+    /// the reference's timed right after it.
     ratio_to_reference: f64,
 }
 
@@ -442,12 +446,19 @@ fn run_scene(
                     solver.step();
                     frame += 1;
                 }
+                // Each run followed by the reference sweep over its work.
+                let reference_threads = if runs_parallel(&solver) { t } else { 1 };
+                let mut paired = PairedRuns::default();
                 let timed: Vec<_> = (0..runs)
-                    .map(|_| time_frames(&mut solver, report.frames_per_run))
+                    .map(|_| {
+                        let f = time_frames(&mut solver, report.frames_per_run);
+                        let ns = f.wall * 1e6 / f.work.max(1.0);
+                        paired.push(ns, f.active, f.work, reference_threads);
+                        f
+                    })
                     .collect();
                 frame += runs * report.frames_per_run;
-                let reference_threads = if runs_parallel(&solver) { t } else { 1 };
-                let row = result_row(method, t, reference_threads, &timed);
+                let row = result_row(method, t, &timed, &paired);
                 eprintln!(
                     "  {:<10} {:<22} {t:>2} threads  {:>9.3} ms/frame  {:>7.0} active  {:>7.1} ns/ci  ×{:.2} reference",
                     report.name,
@@ -474,13 +485,12 @@ fn run_scene(
 }
 
 /// The medians of `timed` runs of one configuration on `threads` threads,
-/// with the reference sweep over as many active constraints on
-/// `reference_threads` (one where the scene stays on the calling thread).
+/// with the reference sweep timed after each (`paired`).
 fn result_row(
     method: SolverMethod,
     threads: u32,
-    reference_threads: u32,
     timed: &[crate::bench::FrameTimes],
+    paired: &PairedRuns,
 ) -> ResultRow {
     let walls: Vec<f64> = timed.iter().map(|f| f.wall).collect();
     let (lo, hi) = walls
@@ -490,7 +500,6 @@ fn result_row(
     let active = median(timed.iter().map(|f| f.active).collect());
     let work = median(timed.iter().map(|f| f.work).collect());
     let ns = wall * 1e6 / work.max(1.0);
-    let reference = reference_for(active, work, reference_threads);
     ResultRow {
         method: method_label(method),
         threads,
@@ -511,8 +520,8 @@ fn result_row(
         active_constraints: active,
         work,
         ns_per_constraint_iteration: ns,
-        reference_ns: reference,
-        ratio_to_reference: ns / reference,
+        reference_ns: paired.reference_ns(),
+        ratio_to_reference: paired.ratio(),
     }
 }
 
