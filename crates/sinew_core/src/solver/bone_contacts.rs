@@ -21,6 +21,7 @@
 //! the positions it settles into the workspace, and the positions are then
 //! written back in order: the same bits for any thread count.
 
+use super::bone_boxes::{BoneBoxes, box_distance};
 use super::closest_data::{CLOSEST_CHUNK, for_each_piece};
 use super::workspace::{BoneCell, MuscleWorkspace};
 use crate::closest::{NO_TRIANGLE, SideMemo, TargetSet};
@@ -66,16 +67,7 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
             let (lo, hi) = targets.target(ws.target_ids[s]).world_box()?;
             Some((s, lo, hi))
         });
-        ws.bone_boxes.clear();
-        ws.bone_boxes.extend(boxes);
-        ws.bone_groups.clear();
-        let groups = ws.bone_boxes.chunks(BOX_GROUP).scan(0, |end, group| {
-            *end += group.len();
-            let lo = group.iter().fold(Vec3A::INFINITY, |lo, b| lo.min(b.1));
-            let hi = group.iter().fold(Vec3A::NEG_INFINITY, |hi, b| hi.max(b.2));
-            Some((*end, lo, hi))
-        });
-        ws.bone_groups.extend(groups);
+        ws.bone_boxes.rebuild(boxes);
     }
     // Bones posed as at the last check leave every margin as true as it
     // was (a margin is the room left before one of them), so the check
@@ -86,7 +78,6 @@ pub fn bone_contacts<T: TargetSet + Sync + ?Sized>(
         p: &m.p,
         w: &m.w,
         boxes: &ws.bone_boxes,
-        groups: &ws.bone_groups,
         target_ids: &ws.target_ids,
         targets,
         bones_moved,
@@ -151,24 +142,12 @@ fn record_bone_poses<T: TargetSet + ?Sized>(
     moved
 }
 
-/// Bone boxes per group of [`MuscleWorkspace::bone_groups`]: a skin
-/// vertex tests the boxes of the groups near it only (a group of
-/// consecutive bones, a hand's or a leg's, lies together).
-const BOX_GROUP: usize = 8;
-
-/// Distance from `q` to the box `[lo, hi]` (0 inside).
-fn box_distance(q: Vec3A, lo: Vec3A, hi: Vec3A) -> f32 {
-    (lo - q).max(q - hi).max(Vec3A::ZERO).length()
-}
-
 /// What every vertex's check reads.
 struct ContactInput<'a, T: ?Sized> {
     p: &'a [Vec3],
     w: &'a [f32],
-    /// The bones' packed world boxes: `(target slot, min, max)`.
-    boxes: &'a [(usize, Vec3A, Vec3A)],
-    /// `boxes` in consecutive groups: `(end, min, max)`.
-    groups: &'a [(usize, Vec3A, Vec3A)],
+    /// The bones' world boxes.
+    boxes: &'a BoneBoxes,
     target_ids: &'a [TargetId],
     targets: &'a T,
     /// A bone was posed otherwise than at the last check (the substep's
@@ -241,7 +220,7 @@ impl<'a> ContactRun<'a> {
 
 impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
     /// Checks a run's vertices against their bones.
-    fn check(&self, run: ContactRun) {
+    fn check(&self, mut run: ContactRun) {
         for (i, id) in run.particle.iter().enumerate() {
             let v = id.index();
             let mut x = self.p[v];
@@ -258,67 +237,34 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
             // The smallest remaining clearance over this vertex's bones.
             let mut margin = f32::INFINITY;
             let q = Vec3A::from(x);
-            let mut start = 0;
-            for &(end, lo, hi) in self.groups {
-                let group = std::mem::replace(&mut start, end)..end;
+            // Where the vertex was inside bones at rest (rarely): their
+            // boxes do not count.
+            let inside_at_rest = run.inside_start[i] != run.inside_start[i + 1];
+            for (lo, hi, quads) in self.boxes.groups() {
                 // A group the vertex is outside of by at least the margin
                 // so far holds no box that contains it or lowers the margin.
                 let outside = box_distance(q, lo, hi);
                 if outside > 0.0 && outside >= margin {
                     continue;
                 }
-                for &(slot, lo, hi) in &self.boxes[group] {
-                    if !outside_at_rest(self.inside, &run.inside_start[i..=i + 1], slot) {
-                        continue;
-                    }
-                    let outside_box = box_distance(q, lo, hi);
-                    if outside_box > 0.0 {
-                        margin = margin.min(outside_box);
-                        continue;
-                    }
-                    let target = self.targets.target(self.target_ids[slot]);
-                    let local = target.to_local(x);
-                    let ways = &mut run.cells[i * run.ways..(i + 1) * run.ways];
-                    let cell = BoneCell::of(ways, slot);
-                    let known = cell.clearance;
-                    let moved2 = local.distance_squared(known.truncate());
-                    if moved2 < known.w * known.w {
-                        margin = margin.min(known.w - moved2.sqrt());
-                        continue;
-                    }
-                    let lower = target.lower_bound_local(local);
-                    if lower > 0.0 {
-                        cell.clearance = local.extend(lower);
-                        margin = margin.min(lower);
-                        continue;
-                    }
-                    let hit = match cell.warm {
-                        NO_TRIANGLE => target.closest_within(x, None, f32::INFINITY),
-                        t => target.walk(x, t),
-                    };
-                    let hit = hit.map(|hit| {
-                        if self.layer || hit.distance > SIDE_READ_BEYOND * self.length_unit {
-                            target.settle_side(x, hit, &mut run.side_memo[i], slot as u32)
-                        } else {
-                            hit
+                for quad in quads {
+                    let mut hits = quad.test(q);
+                    if inside_at_rest {
+                        for k in 0..4 {
+                            let slot = quad.slot(k);
+                            let rest = &run.inside_start[i..=i + 1];
+                            if slot != usize::MAX && !outside_at_rest(self.inside, rest, slot) {
+                                hits.inside &= !(1 << k);
+                                hits.outside[k] = f32::INFINITY;
+                            }
                         }
-                    });
-                    let Some(hit) = hit else {
-                        margin = 0.0;
-                        continue;
-                    };
-                    cell.warm = hit.triangle;
-                    if hit.signed_distance < 0.0 {
-                        x -= Vec3::from(hit.normal) * hit.signed_distance;
-                        self.pushed.store(true, Ordering::Relaxed);
-                        cell.clearance = Vec4::ZERO;
-                        margin = 0.0;
-                    } else {
-                        // The cell's clearance, which its own test trusts:
-                        // a vertex that moves less than it skips the cell
-                        // there, so it may skip the whole check.
-                        cell.clearance = local.extend(hit.distance);
-                        margin = margin.min(hit.distance);
+                    }
+                    margin = margin.min(hits.outside.min_element());
+                    let mut inside = hits.inside;
+                    while inside != 0 {
+                        let slot = quad.slot(inside.trailing_zeros() as usize);
+                        inside &= inside - 1;
+                        self.settle(&mut x, &mut margin, slot, &mut run, i);
                     }
                 }
             }
@@ -331,6 +277,57 @@ impl<T: TargetSet + ?Sized> ContactInput<'_, T> {
             };
             run.margin[i] = x.extend(margin);
             run.settled[i] = x;
+        }
+    }
+
+    /// Checks the vertex of constraint `i` of `run`, at `x`, against bone
+    /// `slot`, whose box holds it: from its cell's clearance, the bone's
+    /// bounds, or a walk to the closest point (pushing `x` back onto the
+    /// bone's surface from inside it); lowers `margin` to what is left.
+    fn settle(&self, x: &mut Vec3, margin: &mut f32, slot: usize, run: &mut ContactRun, i: usize) {
+        let target = self.targets.target(self.target_ids[slot]);
+        let local = target.to_local(*x);
+        let ways = &mut run.cells[i * run.ways..(i + 1) * run.ways];
+        let cell = BoneCell::of(ways, slot);
+        let known = cell.clearance;
+        let moved2 = local.distance_squared(known.truncate());
+        if moved2 < known.w * known.w {
+            *margin = margin.min(known.w - moved2.sqrt());
+            return;
+        }
+        let lower = target.lower_bound_local(local);
+        if lower > 0.0 {
+            cell.clearance = local.extend(lower);
+            *margin = margin.min(lower);
+            return;
+        }
+        let hit = match cell.warm {
+            NO_TRIANGLE => target.closest_within(*x, None, f32::INFINITY),
+            t => target.walk(*x, t),
+        };
+        let hit = hit.map(|hit| {
+            if self.layer || hit.distance > SIDE_READ_BEYOND * self.length_unit {
+                target.settle_side(*x, hit, &mut run.side_memo[i], slot as u32)
+            } else {
+                hit
+            }
+        });
+        let Some(hit) = hit else {
+            *margin = 0.0;
+            return;
+        };
+        cell.warm = hit.triangle;
+        if hit.signed_distance < 0.0 {
+            *x -= Vec3::from(hit.normal) * hit.signed_distance;
+            self.pushed.store(true, Ordering::Relaxed);
+            cell.clearance = Vec4::ZERO;
+            *margin = 0.0;
+        } else {
+            // The cell's clearance, which its own test trusts:
+            // a vertex that moves less than it skips the cell
+            // there, so it may skip the whole check.
+            cell.clearance = local.extend(hit.distance);
+            *margin = margin.min(hit.distance);
         }
     }
 }

@@ -19,6 +19,7 @@
 //! the thesis' Alg. 3). That makes the order of muscles irrelevant within an
 //! iteration and the result deterministic.
 
+mod bone_boxes;
 mod bone_contacts;
 mod closest_data;
 pub mod coloring;

@@ -19,13 +19,14 @@
 //! built for; the muscle bumps that counter whenever its constraints are
 //! relinked or switched on or off, so staleness is an integer compare.
 
+use super::bone_boxes::BoneBoxes;
 use super::coloring::ColorPlan;
 use super::jacobi::JacobiState;
 use super::momentum::RigidMomentum;
 use crate::closest::{NO_TRIANGLE, SideMemo};
 use crate::constraints::{ConstraintBatch, TargetId};
 use crate::muscle::{ConstraintKind, Muscle};
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{Vec3, Vec4};
 
 /// Most bone cells per Sliding constraint ([`MuscleWorkspace::bone_cells`]):
 /// a vertex is in the boxes of a handful of bones at once (a muscle with
@@ -116,13 +117,10 @@ pub struct MuscleWorkspace {
     /// at bone contacts' last check: a substep's first check trusts the
     /// margins when none moved since.
     pub(crate) bone_poses: Vec<glam::Affine3A>,
-    /// Bone contacts' packed world boxes of the muscle's bones, `(target
-    /// slot, min, max)`: rebuilt in a substep's first iteration (bones are
-    /// posed once per substep) and after a relink (emptied).
-    pub(crate) bone_boxes: Vec<(usize, Vec3A, Vec3A)>,
-    /// `bone_boxes` in consecutive groups, `(end, min, max)`: each group's
-    /// entries end at `end` (exclusive) and its box holds their boxes.
-    pub(crate) bone_groups: Vec<(usize, Vec3A, Vec3A)>,
+    /// Bone contacts' world boxes of the muscle's bones, packed: rebuilt
+    /// in a substep's first iteration (bones are posed once per substep)
+    /// and after a relink (emptied).
+    pub(crate) bone_boxes: BoneBoxes,
     /// Bone contacts' position of each Sliding constraint's vertex after
     /// its check, written back to the muscle once every vertex is checked
     /// (the checks run in parallel chunks).
@@ -241,7 +239,6 @@ impl MuscleWorkspace {
             .resize(m.constraints.sliding.len(), Vec4::ZERO);
         self.bone_poses.clear();
         self.bone_boxes.clear();
-        self.bone_groups.clear();
         self.side_memo.clear();
         self.side_memo.resize(s.len(), SideMemo::default());
         self.switched_on = SwitchedOn::default();
