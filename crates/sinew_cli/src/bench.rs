@@ -362,9 +362,7 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode, Box<dyn Error>> {
     let mut paired = PairedRuns::default();
     for _ in 0..runs {
         let r = run_once(args, true, Bodies::All)?;
-        let reference_threads = if r.parallel { r.threads } else { 1 };
-        let ns = r.times.wall * 1e6 / r.times.work.max(1.0);
-        paired.push(ns, r.times.active, r.times.work, reference_threads);
+        paired.push(&r.times, if r.parallel { r.threads } else { 1 });
         for (k, v) in r.times.blocks.iter().enumerate() {
             blocks[k].push(*v);
         }

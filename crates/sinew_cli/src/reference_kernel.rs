@@ -15,7 +15,7 @@
 //! read in order: the friendliest memory pattern a sweep can have, so the
 //! ratio to it is an upper bound of sinew's overhead.
 
-use crate::bench::median;
+use crate::bench::{FrameTimes, median};
 use rayon::prelude::*;
 use sinew_core::solver::coloring::TASK_CONSTRAINTS;
 use std::time::Instant;
@@ -194,11 +194,12 @@ pub struct PairedRuns {
 }
 
 impl PairedRuns {
-    /// Records a run of `ns` per active constraint-iteration over `active`
-    /// constraints and `work` constraint-iterations a frame, and times the
-    /// reference over the same on `threads` right after it.
-    pub fn push(&mut self, ns: f64, active: f64, work: f64, threads: u32) {
-        self.push_timed(ns, reference_for(active, work, threads));
+    /// Records a run that measured `times`, and times the reference over
+    /// its active constraints and constraint-iterations on `threads` right
+    /// after it.
+    pub fn push(&mut self, times: &FrameTimes, threads: u32) {
+        let ns = times.wall * 1e6 / times.work.max(1.0);
+        self.push_timed(ns, reference_for(times.active, times.work, threads));
     }
 
     /// Records a run of `ns` and the reference's `reference` ns after it.

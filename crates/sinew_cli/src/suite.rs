@@ -452,8 +452,7 @@ fn run_scene(
                 let timed: Vec<_> = (0..runs)
                     .map(|_| {
                         let f = time_frames(&mut solver, report.frames_per_run);
-                        let ns = f.wall * 1e6 / f.work.max(1.0);
-                        paired.push(ns, f.active, f.work, reference_threads);
+                        paired.push(&f, reference_threads);
                         f
                     })
                     .collect();
