@@ -205,12 +205,35 @@ impl TriangleBvh {
         slack: f32,
         mut leaf_distance: impl FnMut(u32) -> (f32, T),
     ) -> Option<(u32, f32, T)> {
+        let mut best: Option<(u32, f32, T)> = None;
+        self.search_leaves(query, bound, slack, |_, list, bound| {
+            for &t in list {
+                let (dt, payload) = leaf_distance(t);
+                if dt < *bound {
+                    *bound = dt;
+                    best = Some((t, dt, payload));
+                }
+            }
+        });
+        best
+    }
+
+    /// The nearest-first descent under [`TriangleBvh::closest`]: `leaf` is
+    /// given each leaf whose box, grown by `slack`, is closer than the
+    /// bound (squared; `bound` at first), with its node index and
+    /// triangles, and lowers the bound to what it found.
+    pub(super) fn search_leaves(
+        &self,
+        query: Vec3,
+        bound: f32,
+        slack: f32,
+        mut leaf: impl FnMut(usize, &[u32], &mut f32),
+    ) {
         if self.nodes.is_empty() {
-            return None;
+            return;
         }
         let q = Vec3A::from(query);
         let box_distance = |n: &Node| n.distance_squared(q, slack);
-        let mut best: Option<(u32, f32, T)> = None;
         let mut bound = bound;
         let mut stack: [(u32, f32); 64] = [(0, 0.0); 64];
         stack[0] = (0, box_distance(&self.nodes[0]));
@@ -223,13 +246,8 @@ impl TriangleBvh {
             }
             let node = &self.nodes[i as usize];
             if node.count > 0 {
-                for &t in &self.order[node.start as usize..(node.start + node.count) as usize] {
-                    let (dt, payload) = leaf_distance(t);
-                    if dt < bound {
-                        bound = dt;
-                        best = Some((t, dt, payload));
-                    }
-                }
+                let list = &self.order[node.start as usize..(node.start + node.count) as usize];
+                leaf(i as usize, list, &mut bound);
                 continue;
             }
             let (l, r) = (node.start, node.start + 1);
@@ -253,6 +271,5 @@ impl TriangleBvh {
                 top += 1;
             }
         }
-        best
     }
 }

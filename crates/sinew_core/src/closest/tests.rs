@@ -172,3 +172,58 @@ fn a_posed_hit_has_the_unit_interpolated_normal() {
         );
     }
 }
+
+/// A bone's full search (its leaves' triangles four at a time in SIMD
+/// lanes) finds what the scalar search over the same mesh finds, to the
+/// bit: the same triangle, point, barycentric coordinates and distance, near
+/// the surface and far from it, inside and out, from a warm triangle and
+/// without, bounded and not. The mesh has a sliver and a point triangle (a
+/// lane's degenerate divisions). Seen to fail with the lanes' dot products
+/// summed as `x + (y + z)`, and the interior's point as `a + (ab·v + ac·w)`.
+#[test]
+fn a_bones_packed_search_finds_the_scalar_searchs_hit() {
+    let mesh = MeshGenerator::Ellipsoid {
+        center: Vec3::ZERO,
+        radii: Vec3::new(0.05, 0.02, 0.025),
+        segments: 24,
+        stacks: 16,
+    }
+    .build("bone")
+    .unwrap();
+    let mut triangles = mesh.triangles;
+    // A point triangle and a sliver along an existing edge.
+    let [a, b, _] = triangles[7];
+    triangles.extend([[a, a, a], [a, b, a]]);
+    let bone = TargetSurface::new(
+        "bone",
+        TargetSource::Bone(0),
+        mesh.positions.clone(),
+        triangles.clone(),
+    );
+    let scalar = TargetSurface::new("scalar", TargetSource::Muscle(0), mesh.positions, triangles);
+    assert!(!bone.geometry.leaf_packs.is_empty() && scalar.geometry.leaf_packs.is_empty());
+    let bits = |h: Option<ClosestHit>| {
+        h.map(|h| {
+            let v = |v: Vec3A| v.to_array().map(f32::to_bits);
+            (
+                h.triangle,
+                v(h.point),
+                v(h.barycentric),
+                h.distance.to_bits(),
+            )
+        })
+    };
+    let mut found = 0;
+    for i in 0..2000 {
+        let q = (0.03 + 0.04 * (i % 7) as f32 / 6.0) * jitter(i + 11);
+        let warm = (i % 3 == 0).then_some((i * 37 % bone.triangles().len()) as u32);
+        let bound = if i % 5 == 0 { 0.004 } else { f32::MAX };
+        let (packed, plain) = (
+            bone.closest_within(q, warm, bound),
+            scalar.closest_within(q, warm, bound),
+        );
+        found += usize::from(packed.is_some());
+        assert_eq!(bits(packed), bits(plain), "query {i} at {q}");
+    }
+    assert!(found > 1500, "{found}");
+}

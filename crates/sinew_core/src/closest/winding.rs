@@ -29,6 +29,7 @@
 //! winding number's time, each a call to libm in a chain of ninety.
 
 use super::bvh::{LEAF_SIZE, NodeContents, TriangleBvh};
+use super::corner_pack::CornerPack;
 use glam::{DVec3, Vec3, Vec3A, Vec4};
 
 /// Solid angle of triangle `abc` seen from the origin (the corners relative
@@ -41,36 +42,7 @@ pub(super) fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     2.0 * numerator.atan2(denominator)
 }
 
-// A leaf's triangles fit one pack's four lanes.
-const _: () = assert!(LEAF_SIZE <= 4);
-
-/// The corners of up to four triangles (a leaf's), coordinate by
-/// coordinate: lane `k` of `a[0]` is the `x` of triangle `k`'s first
-/// corner. A leaf of fewer fills its other lanes with a point triangle,
-/// whose solid angle is 0 from anywhere.
-#[derive(Clone, Copy, Debug, Default)]
-struct CornerPack {
-    a: [Vec4; 3],
-    b: [Vec4; 3],
-    c: [Vec4; 3],
-}
-
 impl CornerPack {
-    /// The pack of `triangles` (at most four), given by their corners.
-    fn new(triangles: &[[Vec3; 3]]) -> Self {
-        debug_assert!(!triangles.is_empty() && triangles.len() <= LEAF_SIZE);
-        let point = [triangles[0][0]; 3];
-        let lane = |k: usize| triangles.get(k).copied().unwrap_or(point);
-        let axis = |corner: usize, axis: usize| {
-            Vec4::from_array(std::array::from_fn(|k| lane(k)[corner][axis]))
-        };
-        Self {
-            a: std::array::from_fn(|i| axis(0, i)),
-            b: std::array::from_fn(|i| axis(1, i)),
-            c: std::array::from_fn(|i| axis(2, i)),
-        }
-    }
-
     /// The sum of the pack's solid angles seen from `q` ([`solid_angle`],
     /// in single precision: the fast winding number only has to tell ½
     /// from 0 or 1).
