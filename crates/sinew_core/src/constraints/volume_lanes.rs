@@ -125,9 +125,17 @@ impl VolumeLanes {
         let first = &*volumes[0];
         let n = first.surface_count;
         let o = Lanes3::of(|k| p[k][0]);
+        let [p0, p1, p2, p3] = p.each_ref().map(|p| &p[..n]);
         self.relative.clear();
         self.relative
-            .extend((0..n).map(|v| Lanes3::of(|k| p[k][v]).sub(o)));
+            .extend(p0.iter().zip(p1).zip(p2).zip(p3).map(|(((a, b), c), d)| {
+                let lanes = Lanes3 {
+                    x: Vec4::new(a.x, b.x, c.x, d.x),
+                    y: Vec4::new(a.y, b.y, c.y, d.y),
+                    z: Vec4::new(a.z, b.z, c.z, d.z),
+                };
+                lanes.sub(o)
+            }));
         self.gradient.clear();
         self.gradient.resize(n, Lanes3::default());
         let (r, g) = (&self.relative[..n], &mut self.gradient[..n]);
@@ -167,13 +175,15 @@ impl VolumeLanes {
         }
         let mut wg = [0.0f64; LANES];
         let sixth = Vec4::splat(6.0);
-        for (v, g) in g.iter_mut().enumerate() {
+        let [w0, w1, w2, w3] = w.map(|w| &w[..n]);
+        let masses = w0.iter().zip(w1).zip(w2).zip(w3);
+        for (g, (((&w0, &w1), &w2), &w3)) in g.iter_mut().zip(masses) {
             *g = Lanes3 {
                 x: g.x / sixth,
                 y: g.y / sixth,
                 z: g.z / sixth,
             };
-            let weighted = lanes::of(|k| w[k][v]) * g.dot(*g);
+            let weighted = Vec4::new(w0, w1, w2, w3) * g.dot(*g);
             for (sum, t) in wg.iter_mut().zip(weighted.to_array()) {
                 *sum += t as f64;
             }
@@ -196,7 +206,7 @@ impl VolumeLanes {
         how: [VolumeProjection; LANES],
     ) {
         let [a, b, c, d] = members;
-        let (volumes, p, w) = (
+        let (volumes, mut p, w) = (
             [a.0, b.0, c.0, d.0],
             [a.1, b.1, c.1, d.1],
             [a.2, b.2, c.2, d.2],
@@ -214,6 +224,9 @@ impl VolumeLanes {
                 break;
             }
             let (c, wg) = self.evaluate(&volumes, &p, w);
+            // Each going lane's step: its multiplier's change, or none.
+            let mut dl = [0.0f32; LANES];
+            let mut moves = [false; LANES];
             for k in (0..LANES).filter(|&k| going[k]) {
                 step[k] += 1;
                 if how[k] == VolumeProjection::Converge
@@ -221,19 +234,59 @@ impl VolumeLanes {
                 {
                     limit[k] = VolumeConstraint::MAX_NEWTON_STEPS_FAR;
                 }
-                let dl = delta_lambda(c[k] as f32, volumes[k].lambda, wg[k] as f32, alpha[k]);
-                if dl == 0.0 {
+                dl[k] = delta_lambda(c[k] as f32, volumes[k].lambda, wg[k] as f32, alpha[k]);
+                if dl[k] == 0.0 {
                     done[k] = true;
                     continue;
                 }
-                volumes[k].lambda += dl;
-                for ((p, g), &wv) in p[k][..n].iter_mut().zip(&self.gradient).zip(w[k]) {
-                    let s = wv * dl;
-                    *p += Vec3::new(g.x[k] * s, g.y[k] * s, g.z[k] * s);
-                }
+                volumes[k].lambda += dl[k];
+                moves[k] = true;
                 if (c[k] / scale[k]).abs() < VolumeConstraint::CLOSE {
                     done[k] = true;
                 }
+            }
+            self.step_positions(&mut p, w, n, dl, moves);
+        }
+    }
+
+    /// Moves each lane `k` that `moves` along its gradient by `dl[k]`
+    /// times each vertex's inverse mass (`p += w · dl · ∇C`, as the
+    /// serial projection moves it); the lanes that do not move keep their
+    /// positions' bits (adding a zero would turn a −0 into +0). All four
+    /// at once, vertex by vertex, where all four move (most steps).
+    fn step_positions(
+        &self,
+        p: &mut [&mut [Vec3]; LANES],
+        w: [&[f32]; LANES],
+        n: usize,
+        dl: [f32; LANES],
+        moves: [bool; LANES],
+    ) {
+        let g = &self.gradient[..n];
+        if moves == [true; LANES] {
+            let dl = Vec4::from_array(dl);
+            let [p0, p1, p2, p3] = p;
+            let [w0, w1, w2, w3] = w.map(|w| &w[..n]);
+            let masses = w0.iter().zip(w1).zip(w2).zip(w3);
+            let positions =
+                (p0.iter_mut().zip(p1.iter_mut())).zip(p2.iter_mut().zip(p3.iter_mut()));
+            for ((g, (((&w0, &w1), &w2), &w3)), ((a, b), (c, d))) in
+                g.iter().zip(masses).zip(positions)
+            {
+                let s = Vec4::new(w0, w1, w2, w3) * dl;
+                let (x, y, z) = (g.x * s, g.y * s, g.z * s);
+                *a += Vec3::new(x.x, y.x, z.x);
+                *b += Vec3::new(x.y, y.y, z.y);
+                *c += Vec3::new(x.z, y.z, z.z);
+                *d += Vec3::new(x.w, y.w, z.w);
+            }
+            return;
+        }
+        for k in (0..LANES).filter(|&k| moves[k]) {
+            let lane = |v: Vec4| v.to_array()[k];
+            for ((p, g), &wv) in p[k][..n].iter_mut().zip(g).zip(w[k]) {
+                let s = wv * dl[k];
+                *p += Vec3::new(lane(g.x) * s, lane(g.y) * s, lane(g.z) * s);
             }
         }
     }
