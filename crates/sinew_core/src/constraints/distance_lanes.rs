@@ -66,8 +66,12 @@ impl DistanceLanes {
     pub fn load_batches(&mut self, w: [&[f32]; LANES], batches: [&[&DistanceBatch]; LANES]) {
         let particles = w.iter().map(|w| w.len()).min().unwrap_or(0);
         self.particles.resize(particles, LaneParticle::default());
-        for (v, particle) in self.particles.iter_mut().enumerate() {
-            particle.w = lanes::of(|k| w[k][v]);
+        for (particle, w) in self
+            .particles
+            .iter_mut()
+            .zip(zip4(w.map(|w| &w[..particles])))
+        {
+            particle.w = w;
         }
         self.rest.clear();
         self.lambda.clear();
@@ -75,13 +79,11 @@ impl DistanceLanes {
         self.starts.clear();
         for (b, first) in batches[0].iter().enumerate() {
             let n = first.len();
+            let batch = batches.map(|batches| batches[b]);
             self.starts.push(self.rest.len());
-            self.rest
-                .extend((0..n).map(|i| lanes::of(|k| batches[k][b].rest[i])));
-            self.lambda
-                .extend((0..n).map(|i| lanes::of(|k| batches[k][b].lambda[i])));
-            self.compliance
-                .push(lanes::of(|k| batches[k][b].compliance));
+            self.rest.extend(zip4(batch.map(|b| &b.rest[..n])));
+            self.lambda.extend(zip4(batch.map(|b| &b.lambda[..n])));
+            self.compliance.push(lanes::of(|k| batch[k].compliance));
         }
     }
 
@@ -169,6 +171,13 @@ impl DistanceLanes {
             }
         }
     }
+}
+
+/// Four muscles' values, item by item, as lanes (muscle `k`'s in lane
+/// `k`), as long as the shortest.
+fn zip4(v: [&[f32]; LANES]) -> impl Iterator<Item = Vec4> + '_ {
+    let [a, b, c, d] = v;
+    (a.iter().zip(b).zip(c).zip(d)).map(|(((a, b), c), d)| Vec4::new(*a, *b, *c, *d))
 }
 
 #[cfg(test)]
