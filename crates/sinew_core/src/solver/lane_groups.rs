@@ -52,6 +52,14 @@ pub(crate) struct LaneGroup {
     fits: bool,
     /// Their Volumes share one surface topology too.
     volumes_fit: bool,
+    /// `distance` holds the members' inverse masses, rest lengths and
+    /// multipliers, as the substep's first block took them: its later
+    /// blocks go on with them. Between blocks only snapshots are
+    /// published; the masses and rest lengths change at a substep's or a
+    /// frame's start, and each block gives the multipliers back to the
+    /// members as the lanes hold them (T7's second block of a frame took
+    /// them all into lanes again).
+    loaded: bool,
     distance: DistanceLanes,
     volume: VolumeLanes,
 }
@@ -148,6 +156,7 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
     let split = around_distance_run(order);
     if let Some((_, run, _)) = split.filter(|_| it.first_of_substep()) {
         state.fits = runs_in_lanes(group, it, run);
+        state.loaded = false;
         let volumes = group.each_ref().map(|(m, _)| m.constraints.volume.as_ref());
         state.volumes_fit = match volumes {
             [Some(a), Some(b), Some(c), Some(d)] => volumes_share_topology([a, b, c, d]),
@@ -163,11 +172,12 @@ fn iterate_group<T: TargetSet + Sync + ?Sized>(
     };
     let inv_h2 = it.substep.inv_h2;
     let split_muscles = f.parallelism.muscles;
-    {
+    if !state.loaded {
         let batches = group.each_ref().map(|(m, _)| distance_batches(m, run));
         let slices = batches.each_ref().map(|b| &b[..run.len()]);
         let w = group.each_ref().map(|(m, _)| m.w.as_slice());
         state.distance.load_batches(w, slices);
+        state.loaded = true;
     }
     let end = it.block_end();
     for it in it.block() {
