@@ -725,6 +725,20 @@ pub fn closest_point_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec3
     (a + ab * v + ac * w, Vec3::new(1.0 - v - w, v, w))
 }
 
+/// The bone-sized ellipsoid (10 × 4 × 5 cm, 24 segments by 16 stacks)
+/// that the closest-point and winding-number tests build their bones from.
+#[cfg(test)]
+fn test_ellipsoid() -> crate::mesh::SurfaceMesh {
+    crate::mesh::primitives::MeshGenerator::Ellipsoid {
+        center: Vec3::ZERO,
+        radii: Vec3::new(0.05, 0.02, 0.025),
+        segments: 24,
+        stacks: 16,
+    }
+    .build("bone")
+    .expect("a valid ellipsoid")
+}
+
 #[cfg(test)]
 mod tests;
 

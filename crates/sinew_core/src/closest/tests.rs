@@ -182,14 +182,7 @@ fn a_posed_hit_has_the_unit_interpolated_normal() {
 /// summed as `x + (y + z)`, and the interior's point as `a + (ab·v + ac·w)`.
 #[test]
 fn a_bones_packed_search_finds_the_scalar_searchs_hit() {
-    let mesh = MeshGenerator::Ellipsoid {
-        center: Vec3::ZERO,
-        radii: Vec3::new(0.05, 0.02, 0.025),
-        segments: 24,
-        stacks: 16,
-    }
-    .build("bone")
-    .unwrap();
+    let mesh = test_ellipsoid();
     let mut triangles = mesh.triangles;
     // A point triangle and a sliver along an existing edge.
     let [a, b, _] = triangles[7];

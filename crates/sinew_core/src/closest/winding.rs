@@ -237,7 +237,6 @@ impl WindingTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::primitives::MeshGenerator;
 
     /// The fast winding number agrees with the sum over every triangle
     /// ([`solid_angle`] in double precision) to 0.05 (it is at most 0.025
@@ -247,14 +246,7 @@ mod tests {
     /// its subtree's.
     #[test]
     fn the_tree_agrees_with_the_sum_over_every_triangle() {
-        let mesh = MeshGenerator::Ellipsoid {
-            center: Vec3::ZERO,
-            radii: Vec3::new(0.05, 0.02, 0.025),
-            segments: 24,
-            stacks: 16,
-        }
-        .build("bone")
-        .unwrap();
+        let mesh = crate::closest::test_ellipsoid();
         let positions = mesh.positions;
         // A hole: every triangle with a corner beyond x = 0.04 is gone.
         let triangles: Vec<[u32; 3]> = (mesh.triangles.into_iter())

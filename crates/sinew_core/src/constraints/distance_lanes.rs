@@ -137,36 +137,25 @@ impl DistanceLanes {
             let lambda = &mut self.lambda[at..at + n];
             for i in 0..n {
                 let (ia, ib) = (a[i].index(), b[i].index());
-                let LaneParticle {
-                    x: ax,
-                    y: ay,
-                    z: az,
-                    w: wa,
-                } = particles[ia];
-                let LaneParticle {
-                    x: bx,
-                    y: by,
-                    z: bz,
-                    w: wb,
-                } = particles[ib];
-                let (dx, dy, dz) = (ax - bx, ay - by, az - bz);
+                let (pa, pb) = (particles[ia], particles[ib]);
+                let (dx, dy, dz) = (pa.x - pb.x, pa.y - pb.y, pa.z - pb.z);
                 let len = lanes::sqrt(dx * dx + dy * dy + dz * dz);
                 // Coincident particles (no direction): the scalar pass
                 // skips the constraint, and so does its lane.
                 let moves = !len.cmplt(tiny);
-                let denom = (wa + wb) + alpha;
+                let denom = (pa.w + pb.w) + alpha;
                 let dl = (-(len - rest[i]) - alpha * lambda[i]) / denom;
                 let dl = Vec4::select(denom.cmpgt(Vec4::ZERO), dl, Vec4::ZERO);
                 let s = dl / len;
                 let (nx, ny, nz) = (dx * s, dy * s, dz * s);
-                let pa = &mut particles[ia];
-                pa.x = Vec4::select(moves, ax + wa * nx, ax);
-                pa.y = Vec4::select(moves, ay + wa * ny, ay);
-                pa.z = Vec4::select(moves, az + wa * nz, az);
-                let pb = &mut particles[ib];
-                pb.x = Vec4::select(moves, bx - wb * nx, bx);
-                pb.y = Vec4::select(moves, by - wb * ny, by);
-                pb.z = Vec4::select(moves, bz - wb * nz, bz);
+                let moved_a = &mut particles[ia];
+                moved_a.x = Vec4::select(moves, pa.x + pa.w * nx, pa.x);
+                moved_a.y = Vec4::select(moves, pa.y + pa.w * ny, pa.y);
+                moved_a.z = Vec4::select(moves, pa.z + pa.w * nz, pa.z);
+                let moved_b = &mut particles[ib];
+                moved_b.x = Vec4::select(moves, pb.x - pb.w * nx, pb.x);
+                moved_b.y = Vec4::select(moves, pb.y - pb.w * ny, pb.y);
+                moved_b.z = Vec4::select(moves, pb.z - pb.w * nz, pb.z);
                 lambda[i] = Vec4::select(moves, lambda[i] + dl, lambda[i]);
             }
         }
