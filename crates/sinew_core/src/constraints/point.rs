@@ -89,6 +89,10 @@ impl ConstraintBatch for PointBatch {
         !self.compliance[i].is_finite()
     }
 
+    fn list_on(&self, list: &mut Vec<u32>) {
+        super::list_finite(&self.compliance, list);
+    }
+
     fn off_flags_are(&self, flags: &[bool]) -> bool {
         flags.len() == self.compliance.len()
             && (self.compliance.iter())

@@ -182,13 +182,10 @@ impl SwitchedOn {
             let set = flags.enumerate().filter(|&(_, set)| set);
             list.extend(set.map(|(i, _)| i as u32));
         }
-        fn on(batch: &impl ConstraintBatch) -> impl Iterator<Item = bool> {
-            (0..batch.count()).map(|i| !batch.is_off(i))
-        }
         let c = &m.constraints;
-        list(on(&c.soft), &mut self.soft);
-        list(on(&c.hard), &mut self.hard);
-        list(on(&c.sliding), &mut self.sliding);
+        c.soft.list_on(&mut self.soft);
+        c.hard.list_on(&mut self.hard);
+        c.sliding.list_on(&mut self.sliding);
         list(
             c.sliding.connected.iter().copied(),
             &mut self.sliding_connected,
