@@ -18,7 +18,7 @@
 
 use super::DistanceBatch;
 use crate::lanes;
-use glam::{Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 
 /// Muscles a [`DistanceLanes`] holds.
 pub const LANES: usize = 4;
@@ -97,27 +97,35 @@ impl DistanceLanes {
         }
     }
 
-    /// Takes the muscles' positions into lanes.
+    /// Takes the muscles' positions into lanes: each particle's four
+    /// positions as the columns of a 4 × 4 matrix, transposed in
+    /// registers into its x, y and z lanes (where the lanes were filled
+    /// one float at a time).
     pub fn load_positions(&mut self, p: [&[Vec3]; LANES]) {
         let n = self.particles.len();
         let [p0, p1, p2, p3] = p.map(|p| &p[..n]);
         let muscles = p0.iter().zip(p1).zip(p2).zip(p3);
         for (particle, (((a, b), c), d)) in self.particles.iter_mut().zip(muscles) {
-            particle.x = Vec4::new(a.x, b.x, c.x, d.x);
-            particle.y = Vec4::new(a.y, b.y, c.y, d.y);
-            particle.z = Vec4::new(a.z, b.z, c.z, d.z);
+            let [a, b, c, d] = [a, b, c, d].map(|v| v.extend(0.0));
+            let lanes = Mat4::from_cols(a, b, c, d).transpose();
+            particle.x = lanes.x_axis;
+            particle.y = lanes.y_axis;
+            particle.z = lanes.z_axis;
         }
     }
 
-    /// Gives each muscle its positions back.
+    /// Gives each muscle its positions back: a particle's lanes (x, y, z
+    /// and the inverse mass) transposed in registers, each muscle's
+    /// position the first three floats of its column.
     pub fn store_positions(&self, p: [&mut [Vec3]; LANES]) {
         let [p0, p1, p2, p3] = p;
         let muscles = p0.iter_mut().zip(p1.iter_mut()).zip(p2.iter_mut());
         for (q, (((a, b), c), d)) in self.particles.iter().zip(muscles.zip(p3.iter_mut())) {
-            *a = Vec3::new(q.x.x, q.y.x, q.z.x);
-            *b = Vec3::new(q.x.y, q.y.y, q.z.y);
-            *c = Vec3::new(q.x.z, q.y.z, q.z.z);
-            *d = Vec3::new(q.x.w, q.y.w, q.z.w);
+            let columns = Mat4::from_cols(q.x, q.y, q.z, q.w).transpose();
+            *a = columns.x_axis.truncate();
+            *b = columns.y_axis.truncate();
+            *c = columns.z_axis.truncate();
+            *d = columns.w_axis.truncate();
         }
     }
 
