@@ -345,7 +345,8 @@ fn read(reader: Reader, path: &Path) -> Result<(), String> {
 
 #[test]
 fn every_bad_input_is_refused_by_name() {
-    let dir = std::env::temp_dir().join(format!("sinew_catalogue_{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_catalogue_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cases: Vec<Case> = [scene_cases(), mesh_cases(), model_cases()]
         .into_iter()

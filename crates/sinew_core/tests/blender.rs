@@ -52,7 +52,8 @@ fn blender_check(
 
 #[test]
 fn blender_skins_sinew_characters_as_gltf_defines() {
-    let dir = std::env::temp_dir().join(format!("sinew_blender_{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_blender_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let arm = dir.join("arm.glb");
     let character = two_bone_arm(0.3, 0.04, 1.5);
@@ -89,7 +90,8 @@ fn blender_plays_a_bake_as_sinew_simulated_it() {
     let path = repository().join("assets/scenes/t5.ron");
     let scene = Scene::load(&path).unwrap();
     let solver = scene.instantiate(path.parent().unwrap()).unwrap();
-    let dir = std::env::temp_dir().join(format!("sinew_blender_bake_{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_blender_bake_{}", std::process::id()));
     bake_and_check(solver, &dir, &["1", "60", "120"]);
 }
 
@@ -128,7 +130,8 @@ fn blender_plays_the_characters_skin_as_sinew_simulated_it() {
         )
         .unwrap();
     scene.add_skin(&character, &SkinLayer::default());
-    let dir = std::env::temp_dir().join(format!("sinew_blender_skin_{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_blender_skin_{}", std::process::id()));
     let file = dir.join("scene/fitted.ron");
     scene.save(&file).unwrap();
     let built = scene.scene.instantiate(file.parent().unwrap()).unwrap();

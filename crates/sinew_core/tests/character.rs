@@ -240,7 +240,8 @@ fn u32_at(bytes: &[u8], at: usize) -> u32 {
 /// tetrahedron (vertices 0–3), a helper triangle, and a pelvis marker cube
 /// (here a quad whose mean is (0, 1, 0)).
 fn mini_makehuman(name: &str, rig: &str, weights: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sinew_mh_{name}_{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_mh_{name}_{}", std::process::id()));
     std::fs::create_dir_all(dir.join("3dobjs")).unwrap();
     std::fs::create_dir_all(dir.join("rigs/standard")).unwrap();
     let obj = "\

@@ -171,7 +171,8 @@ fn the_fitted_scene_walks_with_the_character() {
         );
     }
     fitted.add_skin(&character, &SkinLayer::default());
-    let dir = std::env::temp_dir().join(format!("sinew_fitted_{}", std::process::id()));
+    let dir =
+        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("sinew_fitted_{}", std::process::id()));
     let path = dir.join("fitted.ron");
     fitted.save(&path).unwrap();
     let reloaded = Scene::load(&path).unwrap();
@@ -279,7 +280,8 @@ fn rig_maps_naming_what_is_not_there_are_refused() {
         "{error}"
     );
     // A RON map with an unknown field: the file and the line.
-    let file = std::env::temp_dir().join(format!("sinew_rig_map_{}.ron", std::process::id()));
+    let file = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_rig_map_{}.ron", std::process::id()));
     std::fs::write(&file, "RigMap(\n  pairs: [],\n  bones: [],\n)").unwrap();
     match RigMap::load(&file) {
         Err(e @ CharacterError::Json { .. }) => {
@@ -353,7 +355,8 @@ fn open_skins_degenerate_rigs_and_unwritable_folders() {
             &ClipPlayback::default(),
         )
         .unwrap();
-    let file = std::env::temp_dir().join(format!("sinew_not_a_folder_{}", std::process::id()));
+    let file = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_not_a_folder_{}", std::process::id()));
     std::fs::write(&file, b"a file").unwrap();
     let error = fitted.save(&file.join("fitted.ron")).unwrap_err();
     std::fs::remove_file(&file).unwrap();

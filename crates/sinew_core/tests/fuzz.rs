@@ -158,9 +158,10 @@ fn fuzz(
     seeds: &[Vec<u8>],
     read: impl Fn(&Path),
 ) -> (u64, Vec<String>) {
-    let dir = std::env::temp_dir().join(format!("sinew_fuzz_{}_{name}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_fuzz_{}_{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let findings_dir = std::env::temp_dir().join("sinew_fuzz_findings");
+    let findings_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("sinew_fuzz_findings");
     let path = dir.join(format!("input.{extension}"));
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ name.len() as u64 ^ seed().rotate_left(17));
     let mut corpus: Vec<Vec<u8>> = seeds.to_vec();

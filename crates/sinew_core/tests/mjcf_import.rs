@@ -16,7 +16,8 @@ fn fixture() -> PathBuf {
 
 /// A scratch directory for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sinew_mjcf_{name}_{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_mjcf_{name}_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

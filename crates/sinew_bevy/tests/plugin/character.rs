@@ -101,7 +101,8 @@ fn on_ready(
 
 #[test]
 fn gltf_joints_played_by_bevy_animation_drive_a_muscle() {
-    let dir = std::env::temp_dir().join(format!("sinew_gltf_arm_{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_gltf_arm_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let arm = two_bone_arm(0.3, 0.04, FLEX);
     glb::write(&arm, &dir.join("arm.glb")).unwrap();
@@ -279,7 +280,8 @@ fn a_scene_on_a_character_follows_its_animated_joints() {
     use sinew_core::scene::{BoneSpec, Scene};
     use std::sync::Arc;
 
-    let dir = std::env::temp_dir().join(format!("sinew_on_character_{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_on_character_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let arm = two_bone_arm(0.3, 0.04, FLEX);
     glb::write(&arm, &dir.join("arm.glb")).unwrap();

@@ -19,7 +19,8 @@ use std::time::Duration;
 
 /// A folder with the test arm (`arm.glb`) for this test.
 fn arm_folder(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sinew_{test}_{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("sinew_{test}_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     glb::write(&two_bone_arm(0.3, 0.04, FLEX), &dir.join("arm.glb")).unwrap();
     dir
