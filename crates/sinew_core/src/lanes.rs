@@ -2,7 +2,8 @@
 //! kernels that run four muscles of one topology at once
 //! ([`crate::constraints::DistanceLanes`]): glam gives the lane-wise
 //! arithmetic, this module the lanes built from four muscles' values
-//! (`of`, and `of3` for vectors) and the square root, which glam takes
+//! (`of`, and `of3` / `transpose_in` for vectors, `transpose_out` back)
+//! and the square root, which glam takes
 //! lane by lane.
 //! With `prefetch` and `solver::sweep` the crate's only `unsafe`.
 #![expect(
@@ -10,7 +11,7 @@
     reason = "SSE's packed square root is an intrinsic; SSE2 is part of every x86_64 processor"
 )]
 
-use glam::{Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 
 /// Lane `k` of `f(k)` for each of the four lanes.
 #[inline(always)]
@@ -22,8 +23,31 @@ pub(crate) fn of(f: impl Fn(usize) -> f32) -> Vec4 {
 /// vectors turned into an x, a y and a z of four lanes each.
 #[inline(always)]
 pub(crate) fn of3(f: impl Fn(usize) -> Vec3) -> (Vec4, Vec4, Vec4) {
-    let v = [f(0), f(1), f(2), f(3)];
-    (of(|k| v[k].x), of(|k| v[k].y), of(|k| v[k].z))
+    transpose_in([f(0), f(1), f(2), f(3)])
+}
+
+/// Four vectors as an x, a y and a z of four lanes each (vector `k` in
+/// lane `k`): the vectors as the columns of a 4 × 4 matrix, transposed in
+/// registers (shuffles, not one float at a time).
+#[inline(always)]
+pub(crate) fn transpose_in(v: [Vec3; 4]) -> (Vec4, Vec4, Vec4) {
+    let [a, b, c, d] = v.map(|v| v.extend(0.0));
+    let rows = Mat4::from_cols(a, b, c, d).transpose();
+    (rows.x_axis, rows.y_axis, rows.z_axis)
+}
+
+/// The four vectors whose coordinates lanes `x`, `y` and `z` hold (lane
+/// `k` vector `k`): [`transpose_in`] undone.
+#[inline(always)]
+pub(crate) fn transpose_out(x: Vec4, y: Vec4, z: Vec4) -> [Vec3; 4] {
+    let columns = Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
+    [
+        columns.x_axis,
+        columns.y_axis,
+        columns.z_axis,
+        columns.w_axis,
+    ]
+    .map(Vec4::truncate)
 }
 
 /// The square root of each lane, rounded as `f32::sqrt` rounds it (IEEE

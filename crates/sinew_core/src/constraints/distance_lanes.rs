@@ -18,7 +18,7 @@
 
 use super::DistanceBatch;
 use crate::lanes;
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Vec3, Vec4};
 
 /// Muscles a [`DistanceLanes`] holds.
 pub const LANES: usize = 4;
@@ -97,35 +97,24 @@ impl DistanceLanes {
         }
     }
 
-    /// Takes the muscles' positions into lanes: each particle's four
-    /// positions as the columns of a 4 × 4 matrix, transposed in
-    /// registers into its x, y and z lanes (where the lanes were filled
-    /// one float at a time).
+    /// Takes the muscles' positions into lanes, each particle's four
+    /// positions transposed in registers.
     pub fn load_positions(&mut self, p: [&[Vec3]; LANES]) {
         let n = self.particles.len();
         let [p0, p1, p2, p3] = p.map(|p| &p[..n]);
         let muscles = p0.iter().zip(p1).zip(p2).zip(p3);
         for (particle, (((a, b), c), d)) in self.particles.iter_mut().zip(muscles) {
-            let [a, b, c, d] = [a, b, c, d].map(|v| v.extend(0.0));
-            let lanes = Mat4::from_cols(a, b, c, d).transpose();
-            particle.x = lanes.x_axis;
-            particle.y = lanes.y_axis;
-            particle.z = lanes.z_axis;
+            (particle.x, particle.y, particle.z) = lanes::transpose_in([*a, *b, *c, *d]);
         }
     }
 
-    /// Gives each muscle its positions back: a particle's lanes (x, y, z
-    /// and the inverse mass) transposed in registers, each muscle's
-    /// position the first three floats of its column.
+    /// Gives each muscle its positions back, each particle's lanes
+    /// transposed in registers.
     pub fn store_positions(&self, p: [&mut [Vec3]; LANES]) {
         let [p0, p1, p2, p3] = p;
         let muscles = p0.iter_mut().zip(p1.iter_mut()).zip(p2.iter_mut());
         for (q, (((a, b), c), d)) in self.particles.iter().zip(muscles.zip(p3.iter_mut())) {
-            let columns = Mat4::from_cols(q.x, q.y, q.z, q.w).transpose();
-            *a = columns.x_axis.truncate();
-            *b = columns.y_axis.truncate();
-            *c = columns.z_axis.truncate();
-            *d = columns.w_axis.truncate();
+            [*a, *b, *c, *d] = lanes::transpose_out(q.x, q.y, q.z);
         }
     }
 

@@ -13,7 +13,7 @@
 
 use super::{LANES, VolumeConstraint, VolumeProjection, delta_lambda};
 use crate::lanes;
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Vec3, Vec4};
 
 /// Three coordinates of four muscles' vectors.
 #[derive(Clone, Copy, Debug, Default)]
@@ -129,16 +129,8 @@ impl VolumeLanes {
         self.relative.clear();
         self.relative
             .extend(p0.iter().zip(p1).zip(p2).zip(p3).map(|(((a, b), c), d)| {
-                // The four positions as a matrix's columns, transposed
-                // in registers into lanes.
-                let [a, b, c, d] = [a, b, c, d].map(|v| v.extend(0.0));
-                let m = Mat4::from_cols(a, b, c, d).transpose();
-                let lanes = Lanes3 {
-                    x: m.x_axis,
-                    y: m.y_axis,
-                    z: m.z_axis,
-                };
-                lanes.sub(o)
+                let (x, y, z) = lanes::transpose_in([*a, *b, *c, *d]);
+                Lanes3 { x, y, z }.sub(o)
             }));
         self.gradient.clear();
         self.gradient.resize(n, Lanes3::default());
@@ -279,12 +271,11 @@ impl VolumeLanes {
             {
                 let s = Vec4::new(w0, w1, w2, w3) * dl;
                 let (x, y, z) = (g.x * s, g.y * s, g.z * s);
-                // Lane `k`'s step is column `k` of the transposed lanes.
-                let steps = Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
-                *a += steps.x_axis.truncate();
-                *b += steps.y_axis.truncate();
-                *c += steps.z_axis.truncate();
-                *d += steps.w_axis.truncate();
+                let [sa, sb, sc, sd] = lanes::transpose_out(x, y, z);
+                *a += sa;
+                *b += sb;
+                *c += sc;
+                *d += sd;
             }
             return;
         }
