@@ -341,8 +341,7 @@ impl TargetSurface {
                 None => match self.reached_side(query, q, hit, memo, bone) {
                     Ok(side) => side,
                     Err(searched) => {
-                        let w = tree.winding_number(q);
-                        let side = 0.5 - w;
+                        let side = tree.side(q);
                         let distance = searched.unwrap_or_else(|| self.exact_distance(query, hit));
                         memo.take(bone, q, distance.copysign(side));
                         side
