@@ -138,11 +138,13 @@ pub struct SinewSettings {
     pub full_search_interval: u32,
     /// Frames between two choices of a vertex's closest target. Default `4`.
     pub choose_interval: u32,
-    /// Without `walk_every_iteration`, later iterations project onto the
-    /// feature the walk found. Default `false`.
+    /// Iterations that do not walk project onto the feature the last walk
+    /// found (as [`SolverSettings::feature_contacts`]). Default `false`.
     pub feature_contacts: bool,
-    /// Walk over the targets in every iteration. Default `true`.
-    pub walk_every_iteration: bool,
+    /// Iterations between two walks of Sliding's closest data over the
+    /// targets (as [`SolverSettings::walk_interval`]; a substep's first
+    /// always walks). Default `1` (every iteration).
+    pub walk_interval: u32,
     /// Iterations between two bone-contact passes of a substep (as
     /// [`SolverSettings::bone_contact_interval`]; the first and each
     /// muscle's last always have one). Default `1` (every iteration).
@@ -182,7 +184,7 @@ impl From<SolverSettings> for SinewSettings {
             full_search_interval: s.full_search_interval,
             choose_interval: s.choose_interval,
             feature_contacts: s.feature_contacts,
-            walk_every_iteration: s.walk_every_iteration,
+            walk_interval: s.walk_interval,
             bone_contact_interval: s.bone_contact_interval,
             snapshot_interval: s.snapshot_interval,
             timers: s.timers,
@@ -207,7 +209,7 @@ impl SinewSettings {
             full_search_interval: self.full_search_interval,
             choose_interval: self.choose_interval,
             feature_contacts: self.feature_contacts,
-            walk_every_iteration: self.walk_every_iteration,
+            walk_interval: self.walk_interval,
             bone_contact_interval: self.bone_contact_interval,
             snapshot_interval: self.snapshot_interval,
             threads: self.threads,

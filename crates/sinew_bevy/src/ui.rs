@@ -212,6 +212,11 @@ fn solver(ui: &mut egui::Ui, s: &mut SinewSettings) {
         egui::Slider::new(&mut s.bone_contact_interval, 1..=most)
             .text("bone contacts every (iterations)"),
     );
+    ui.add(egui::Slider::new(&mut s.walk_interval, 1..=most).text("walks every (iterations)"));
+    ui.checkbox(
+        &mut s.feature_contacts,
+        "project onto the walk's feature between walks",
+    );
     ui.add(egui::Slider::new(&mut s.time_scale, 0.05..=2.0).text("time scale"));
     ui.horizontal(|ui| {
         ui.label("gravity m/s²");

@@ -139,6 +139,15 @@ pub struct Overrides {
     /// scene's).
     #[arg(long)]
     pub snapshot_interval: Option<u32>,
+    /// Iterations between two walks of Sliding's closest data over the
+    /// targets (a substep's first always walks; default: the scene's).
+    #[arg(long)]
+    pub walk_interval: Option<u32>,
+    /// Whether the iterations between walks project onto the feature the
+    /// last walk found (`true`) or onto its triangle (`false`; default:
+    /// the scene's).
+    #[arg(long)]
+    pub feature_contacts: Option<bool>,
 }
 
 /// [`SweepSchedule`] on the command line.
@@ -171,6 +180,12 @@ impl Overrides {
         }
         if let Some(k) = self.snapshot_interval {
             solver.settings.snapshot_interval = k;
+        }
+        if let Some(k) = self.walk_interval {
+            solver.settings.walk_interval = k;
+        }
+        if let Some(on) = self.feature_contacts {
+            solver.settings.feature_contacts = on;
         }
         if let Some(s) = self.schedule {
             solver.settings.schedule = match s {

@@ -90,3 +90,30 @@ fn a_bone_contact_interval_override_is_taken_and_zero_is_refused_by_name() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bone_contact_interval = 0"), "{err}");
 }
+
+/// `--walk-interval` and `--feature-contacts` reach the solver: on P3 (a
+/// biceps sliding on its brachialis) walking every fourth iteration with
+/// the features moves the muscles otherwise than walking in every one, and
+/// an interval of 0 is refused by name.
+#[test]
+fn walk_interval_and_feature_contacts_overrides_are_taken_and_zero_is_refused() {
+    let (_, every) = check(&["P3", "--frames", "30"]);
+    let (_, fourth) = check(&[
+        "P3",
+        "--frames",
+        "30",
+        "--walk-interval",
+        "4",
+        "--feature-contacts",
+        "true",
+    ]);
+    let figures = |r: &str| r.lines().skip(1).map(String::from).collect::<Vec<_>>();
+    assert_ne!(figures(&every), figures(&fourth));
+    let out = Command::new(env!("CARGO_BIN_EXE_sinew"))
+        .args(["check", "T1", "--frames", "2", "--walk-interval", "0"])
+        .output()
+        .expect("sinew runs");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("walk_interval = 0"), "{err}");
+}

@@ -176,6 +176,8 @@ fn scene_cases() -> Vec<Case> {
         scene("zero search interval", &[("full_search_interval: 16,", "full_search_interval: 0,")], &["full_search_interval = 0"]),
         scene("zero choose interval", &[("choose_interval: 4,", "choose_interval: 0,")], &["choose_interval = 0"]),
         scene("zero bone contact interval", &[("bone_contact_interval: 1,", "bone_contact_interval: 0,")], &["bone_contact_interval = 0"]),
+        scene("zero walk interval", &[("walk_interval: 1,", "walk_interval: 0,")], &["walk_interval = 0"]),
+        scene("negative walk interval", &[("walk_interval: 1,", "walk_interval: -2,")], &["walk_interval", "true / false"]),
         scene("zero snapshot interval", &[("snapshot_interval: 1,", "snapshot_interval: 0,")], &["snapshot_interval = 0"]),
         scene("activation 1.5", &[("activation: 0.0,", "activation: 1.5,")], &["muscle 'oval'", "activation = 1.5", "[0, 1]"]),
         scene("activation 5", &[("activation: 0.0,", "activation: 5.0,")], &["activation = 5"]),

@@ -8,6 +8,7 @@
 mod common;
 
 use sinew_core::closest::closest_point_triangle;
+use sinew_core::constraints::SlidingMode;
 use sinew_core::glam::Vec3;
 use sinew_core::muscle::ConstraintKind;
 use sinew_core::muscle::{MassMode, Muscle};
@@ -353,4 +354,29 @@ fn a_skins_own_task_is_timed_by_phase_inside_its_blocks() {
     solver.step();
     assert!(solver.timings().layers.total().is_zero(), "no skin");
     assert!(!solver.timings().project.is_zero());
+}
+
+/// A skin in contact mode walks over the muscle only in a substep's first
+/// iteration and re-projects onto the triangle it found in the others,
+/// whatever `feature_contacts` says (projecting onto the feature flipped
+/// the fitted character's skin): with the muscle walking in every
+/// iteration, the setting changes no bit of either body.
+#[test]
+fn a_skin_reprojects_onto_its_triangle_whatever_feature_contacts_says() {
+    let bits = |feature_contacts: bool| {
+        let mut scene = oval_with_skin();
+        scene.muscles[1].params.sliding_mode = SlidingMode::Contact;
+        let mut solver = scene.instantiate(Path::new(".")).unwrap();
+        solver.settings.feature_contacts = feature_contacts;
+        solver.settings.walk_interval = 1;
+        for frame in 0..40 {
+            solver.set_activation(0, if frame >= 20 { 0.3 } else { 0.0 });
+            solver.step();
+        }
+        let bodies = solver.muscles().iter().flat_map(|m| m.x.iter());
+        bodies
+            .flat_map(|p| p.to_array().map(f32::to_bits))
+            .collect::<Vec<_>>()
+    };
+    assert!(bits(false) == bits(true), "feature_contacts moved the skin");
 }

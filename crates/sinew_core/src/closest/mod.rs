@@ -21,10 +21,10 @@
 //!   what sliding means: the contact point travels continuously over the
 //!   target instead of jumping across it. Typically one or two triangle tests.
 //!
-//! The solver walks in the first iteration of every frame (in every
-//! iteration with [`crate::solver::SolverSettings::walk_every_iteration`]),
-//! re-projects onto the triangle found in the others
-//! ([`TargetSurface::on_triangle`]), and runs the full search for each vertex
+//! The solver walks in the first iteration of every substep and every
+//! [`crate::solver::SolverSettings::walk_interval`]-th after it (every
+//! iteration by default), re-projects onto the triangle found in the
+//! others ([`TargetSurface::on_triangle`], or onto its feature), and runs the full search for each vertex
 //! once every [`crate::solver::SolverSettings::full_search_interval`] frames
 //! (staggered over vertices), so a closer region found elsewhere on a target
 //! is picked up within a few frames. A vertex re-chooses which of its

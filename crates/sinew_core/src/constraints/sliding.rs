@@ -99,7 +99,7 @@ pub struct SlidingBatch {
     /// surface layer in [`SlidingMode::Contact`]: a skin over a body, held
     /// by its binding, needs no sliding from triangle to triangle within a
     /// substep). Otherwise as
-    /// [`crate::solver::SolverSettings::walk_every_iteration`] says.
+    /// [`crate::solver::SolverSettings::walk_interval`] says.
     pub walk_first_only: bool,
     /// The target slots each constraint may slide on (those within its
     /// contact band at rest, with a finite rest gap), ascending: constraint

@@ -40,13 +40,20 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
     }
     let reach = m.contact_reach();
     let c = &mut m.constraints;
-    // A contact layer walks in a substep's first iteration only.
-    let walk = search.walk && (!c.sliding.walk_first_only || search.first_of_substep);
+    // A contact layer walks in a substep's first iteration only, and
+    // re-projects onto the triangle in the others.
+    let layer = c.sliding.walk_first_only;
+    let walk = search.walk && (!layer || search.first_of_substep);
+    let feature_contacts = search.feature_contacts && !layer;
     let input = SlidingInput {
         p: &m.p,
         target_ids: &ws.target_ids,
         targets,
-        search: ClosestSchedule { walk, ..search },
+        search: ClosestSchedule {
+            walk,
+            feature_contacts,
+            ..search
+        },
         reach,
         walk_on_bones: c.sliding.walk_first_only,
     };

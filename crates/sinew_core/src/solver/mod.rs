@@ -624,3 +624,5 @@ mod snapshot_interval_tests;
 mod spread_iterations_tests;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod walk_interval_tests;

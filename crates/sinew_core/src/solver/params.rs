@@ -156,10 +156,10 @@ pub struct FrameParams {
     pub full_search_interval: u32,
     /// Frames between target choices.
     pub choose_interval: u32,
-    /// Project onto walk features (without walking every iteration).
+    /// Project onto walk features in the iterations that do not walk.
     pub feature_contacts: bool,
-    /// Walk in every iteration.
-    pub walk_every_iteration: bool,
+    /// Iterations between Sliding's walks.
+    pub walk_interval: u32,
     /// Iterations between bone contacts.
     pub bone_contact_interval: u32,
     /// Iterations between publications of the muscles' snapshots: the
@@ -189,7 +189,7 @@ impl FrameParams {
             full_search_interval: settings.full_search_interval.max(1),
             choose_interval: settings.choose_interval.max(1),
             feature_contacts: settings.feature_contacts,
-            walk_every_iteration: settings.walk_every_iteration,
+            walk_interval: settings.walk_interval.max(1),
             bone_contact_interval: settings.bone_contact_interval.max(1),
             snapshot_interval: settings.snapshot_interval.max(1),
             schedule: settings.schedule,
@@ -386,7 +386,7 @@ impl IterationParams {
             choose_interval: f.choose_interval,
             feature_contacts: f.feature_contacts,
             first_of_frame: self.first_of_frame(),
-            walk: self.first_of_frame() || f.walk_every_iteration,
+            walk: self.index.is_multiple_of(f.walk_interval),
             first_of_substep: self.first_of_substep(),
             split: f.parallelism.muscles,
         }

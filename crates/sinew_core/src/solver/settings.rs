@@ -168,20 +168,35 @@ pub struct SolverSettings {
     /// to *relative to its rest gap* by a tenth of the band (see
     /// `pipeline::closest`). `1` = every frame. Default: `4`.
     pub choose_interval: u32,
-    /// When `walk_every_iteration` is off, later iterations of a frame
-    /// project each vertex onto the face, edge or corner of the triangle the
-    /// first iteration's walk found (a few loads) instead of re-projecting
-    /// onto the triangle. Faster, exact while the vertex stays in that
-    /// feature's region, but the contact point then jumps at the next
-    /// frame's walk. Default: `false`.
+    /// In the iterations of a substep that do not walk (see
+    /// `walk_interval`), project each vertex onto the face plane, edge or
+    /// corner of the triangle the last walk found (its own few loads)
+    /// instead of re-projecting onto the triangle (the target's). Exact
+    /// while the vertex stays in that feature's region. A contact layer (a
+    /// skin) always re-projects onto the triangle: on the fitted character
+    /// the features flipped 320 of its triangles (ARCHITECTURE.md, the
+    /// skin's closest data). Default: `false`.
     pub feature_contacts: bool,
-    /// Walk over the targets in every iteration, so the contact point slides
-    /// from triangle to triangle as the vertex does. With `false` the walk
-    /// runs in the first iteration of a frame and later iterations re-project
-    /// onto the triangle it found: the constraint then jumps from the
-    /// triangle's plane to the next triangle at the next frame, a kick that
-    /// kept T5 at rest moving at 1.2 mm/s (0.08 with walking). Default: `true`.
-    pub walk_every_iteration: bool,
+    /// Sliding's closest data walks over the targets in every this many
+    /// iterations of a substep — the first, every `k`-th after it — and in
+    /// between re-projects onto what the last walk found (see
+    /// `feature_contacts`), so the contact point slides from triangle to
+    /// triangle as the vertex does. Walking only in a substep's first
+    /// iteration left the constraint on one triangle's plane until the next
+    /// substep's walk moved it to the neighbour, a kick that kept T5 at rest
+    /// moving at 1.14 mm/s RMS (0.053 walking in every iteration, and
+    /// 0.053 in every 4th with `feature_contacts`: T7's recipe, whose
+    /// closest data it took from 26 % of the step to 21 %, its penetration
+    /// figure within the scatter; ARCHITECTURE.md, "Walks every few
+    /// iterations"). A contact layer walks in a substep's first iteration
+    /// only. Scenes written with the flag this replaced read
+    /// `walk_every_iteration: true` as `1` and `false` as once per substep.
+    /// `1` = every iteration. Units: iterations. Default: `1`.
+    #[serde(
+        alias = "walk_every_iteration",
+        deserialize_with = "walk_interval_or_flag"
+    )]
+    pub walk_interval: u32,
     /// A muscle's bone contacts (a vertex inside a bone put back on its
     /// surface, after each iteration's projections) run in every this many
     /// iterations of a substep — the first, every `k`-th after it — and
@@ -236,6 +251,30 @@ pub struct SolverSettings {
     pub max_speed: f32,
 }
 
+/// Reads [`SolverSettings::walk_interval`]: a count of iterations, or the
+/// flag it replaced (`walk_every_iteration`): `true` walks in every
+/// iteration (`1`), `false` once per substep (`u32::MAX`).
+fn walk_interval_or_flag<'de, D: serde::Deserializer<'de>>(reader: D) -> Result<u32, D::Error> {
+    struct IntervalOrFlag;
+    impl serde::de::Visitor<'_> for IntervalOrFlag {
+        type Value = u32;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("walk_interval: a count of iterations (≥ 1), or true / false")
+        }
+        fn visit_bool<E: serde::de::Error>(self, every: bool) -> Result<u32, E> {
+            Ok(if every { 1 } else { u32::MAX })
+        }
+        fn visit_u64<E: serde::de::Error>(self, n: u64) -> Result<u32, E> {
+            u32::try_from(n)
+                .map_err(|_| E::invalid_value(serde::de::Unexpected::Unsigned(n), &self))
+        }
+        fn visit_i64<E: serde::de::Error>(self, n: i64) -> Result<u32, E> {
+            u32::try_from(n).map_err(|_| E::invalid_value(serde::de::Unexpected::Signed(n), &self))
+        }
+    }
+    reader.deserialize_any(IntervalOrFlag)
+}
+
 impl Default for SolverSettings {
     fn default() -> Self {
         Self {
@@ -251,7 +290,7 @@ impl Default for SolverSettings {
             full_search_interval: 16,
             choose_interval: 4,
             feature_contacts: false,
-            walk_every_iteration: true,
+            walk_interval: 1,
             bone_contact_interval: 1,
             snapshot_interval: 1,
             threads: 0,
@@ -302,6 +341,9 @@ impl SolverSettings {
         }
         if self.choose_interval == 0 {
             return Err(bad("choose_interval", 0.0, "must be ≥ 1"));
+        }
+        if self.walk_interval == 0 {
+            return Err(bad("walk_interval", 0.0, "must be ≥ 1"));
         }
         if self.bone_contact_interval == 0 {
             return Err(bad("bone_contact_interval", 0.0, "must be ≥ 1"));
