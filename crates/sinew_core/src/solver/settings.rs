@@ -170,8 +170,9 @@ pub struct SolverSettings {
     pub choose_interval: u32,
     /// In the iterations of a substep that do not walk (see
     /// `walk_interval`), project each vertex onto the face plane, edge or
-    /// corner of the triangle the last walk found (its own few loads)
-    /// instead of re-projecting onto the triangle (the target's). Exact
+    /// corner of the triangle the last walk found (the triangle's corners
+    /// read, its plane kept from the walk) instead of re-projecting onto
+    /// the triangle (a triangle test and its interpolated normal). Exact
     /// while the vertex stays in that feature's region. A contact layer (a
     /// skin) always re-projects onto the triangle: on the fitted character
     /// the features flipped 320 of its triangles (ARCHITECTURE.md, the
