@@ -24,10 +24,11 @@
 //! The solver walks in the first iteration of every substep and every
 //! [`crate::solver::SolverSettings::walk_interval`]-th after it (every
 //! iteration by default), re-projects onto the triangle found in the
-//! others ([`TargetSurface::on_triangle`], or onto its feature), and runs the full search for each vertex
-//! once every [`crate::solver::SolverSettings::full_search_interval`] frames
-//! (staggered over vertices), so a closer region found elsewhere on a target
-//! is picked up within a few frames. A vertex re-chooses which of its
+//! others ([`TargetSurface::on_triangle`], or onto its feature), and runs
+//! the full search for each vertex once every
+//! [`crate::solver::SolverSettings::full_search_interval`] frames
+//! (staggered over vertices), so a closer region found elsewhere on a
+//! target is picked up within a few frames. A vertex re-chooses which of its
 //! muscle's targets it slides on once every
 //! [`crate::solver::SolverSettings::choose_interval`] frames (staggered too,
 //! and at every full search), walking on each target whose bounding box is

@@ -55,7 +55,7 @@ pub fn closest_data<T: TargetSet + Sync + ?Sized>(
             ..search
         },
         reach,
-        walk_on_bones: c.sliding.walk_first_only,
+        walk_on_bones: layer,
     };
     let run = SlidingRun::of(
         &mut c.sliding,
